@@ -1,0 +1,267 @@
+"""Scenario files: YAML validated by pydantic models (unknown keys rejected).
+
+Units: metres, seconds, m/s, m/s^2, degrees where a field name says ``_deg``.
+Lanes are indexed 0..lanes-1 from the leftmost lane; a vehicle's ``lane`` in a
+scenario is *relative to the ego lane* (-1 = one lane to the left, +1 = right).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from monorarp.camera import CameraError, CameraModel
+from monorarp.errors import UserError
+
+
+class ScenarioError(UserError, ValueError):
+    """A scenario file that cannot be read or is invalid; the message names file, field and reason."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Markings(_Model):
+    """Painted lane lines (US defaults: 3.05 m stripes every 12.19 m, 0.15 m wide)."""
+
+    stripe_length_m: float = Field(3.05, gt=0)
+    period_m: float = Field(12.19, gt=0)
+    width_m: float = Field(0.15, gt=0, le=1.0)
+    solid_edges: bool = True
+
+    @model_validator(mode="after")
+    def _stripe_fits(self) -> "Markings":
+        if self.stripe_length_m >= self.period_m:
+            raise ValueError("stripe_length_m must be shorter than period_m")
+        return self
+
+
+class Road(_Model):
+    lanes: int = Field(3, ge=1, le=8)
+    lane_width_m: float = Field(4.0, ge=2.5, le=6.0)
+    length_m: float = Field(3000.0, ge=200)
+    shoulder_width_m: float = Field(2.5, ge=0, le=10)
+    speed_limit_mps: float = Field(33.0, gt=0, le=60)
+    markings: Markings = Markings()
+
+
+class IDMParams(_Model):
+    """Intelligent Driver Model parameters (highway-env's IDMVehicle defaults)."""
+
+    a_max: float = Field(3.0, gt=0, le=10, description="comfortable acceleration, m/s^2")
+    b_comfort: float = Field(5.0, gt=0, le=10, description="comfortable deceleration (positive), m/s^2")
+    distance_wanted_m: float = Field(10.0, ge=0, le=50)
+    time_wanted_s: float = Field(1.5, ge=0, le=5)
+    delta: float = Field(4.0, gt=0, le=10)
+
+
+class MOBILParams(_Model):
+    politeness: float = Field(0.0, ge=0, le=1)
+    min_acc_gain: float = Field(0.2, ge=0, le=5)
+    max_braking_imposed: float = Field(2.0, ge=0, le=10)
+    lane_change_delay_s: float = Field(1.0, ge=0, le=10)
+
+
+class Traffic(_Model):
+    """Random IDM/MOBIL traffic placed by highway-env around the ego."""
+
+    vehicles_count: int = Field(10, ge=0, le=200)
+    density: float = Field(1.0, gt=0, le=5)
+    speed_range_mps: tuple[float, float] = (20.0, 30.0)
+    lane_changes: bool = True
+    idm: IDMParams = IDMParams()
+    mobil: MOBILParams = MOBILParams()
+
+    @model_validator(mode="after")
+    def _range(self) -> "Traffic":
+        lo, hi = self.speed_range_mps
+        if not 0 <= lo <= hi <= 60:
+            raise ValueError("speed_range_mps must be [low, high] with 0 <= low <= high <= 60")
+        return self
+
+
+Behaviour = Literal["idm", "constant_speed", "stationary"]
+
+
+class Ego(_Model):
+    lane: int = Field(1, ge=0, description="absolute lane index, 0 = leftmost")
+    speed_mps: float = Field(25.0, ge=0, le=60)
+    behaviour: Literal["idm", "constant_speed"] = "constant_speed"
+    lane_changes: bool = False
+
+
+class PlacedVehicle(_Model):
+    """A named vehicle placed relative to the ego at t = 0.
+
+    ``distance_m`` is the longitudinal distance from the camera to the vehicle's
+    rear face (what ``d_long`` measures); negative places it behind.
+    """
+
+    name: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_\-]*$")
+    lane: int = Field(0, ge=-7, le=7, description="lane relative to the ego's")
+    distance_m: float = Field(ge=-200, le=500)
+    speed_mps: float = Field(0.0, ge=0, le=60)
+    behaviour: Behaviour = "idm"
+    lane_changes: bool = False
+    length_m: float = Field(5.0, ge=3.0, le=20.0)
+    width_m: float = Field(2.0, ge=1.4, le=3.0)
+
+
+class BrakeEvent(_Model):
+    type: Literal["brake"]
+    vehicle: str
+    at_s: float = Field(ge=0)
+    decel_mps2: float = Field(gt=0, le=12)
+    until_speed_mps: float = Field(0.0, ge=0)
+
+
+class CutInEvent(_Model):
+    """At ``at_s`` the vehicle, in a lane adjacent to the ego's, steers into the ego's lane.
+
+    Its initial distance is chosen so that at ``at_s`` its rear is ``gap_m``
+    ahead of the camera if both keep their initial speeds.
+    """
+
+    type: Literal["cut_in"]
+    vehicle: str
+    at_s: float = Field(ge=0)
+    gap_m: float = Field(gt=0, le=200)
+
+
+class SpeedChangeEvent(_Model):
+    type: Literal["speed_change"]
+    vehicle: str = Field(description="a placed vehicle's name or 'ego'")
+    at_s: float = Field(ge=0)
+    target_speed_mps: float = Field(ge=0, le=60)
+
+
+Event = Annotated[Union[BrakeEvent, CutInEvent, SpeedChangeEvent], Field(discriminator="type")]
+
+
+class Camera(_Model):
+    """Either ``focal_px`` or ``hfov_deg``; principal point at the image centre."""
+
+    width: int = Field(640, ge=64, le=7680)
+    height: int = Field(360, ge=48, le=4320)
+    focal_px: float | None = Field(None, gt=0)
+    hfov_deg: float | None = Field(70.0, gt=1, lt=179)
+    height_m: float = Field(1.3, gt=0.2, le=5.0)
+    pitch_deg: float = Field(2.0, ge=-30, le=30, description="positive tilts the camera down")
+    lateral_offset_m: float = Field(0.0, ge=-2, le=2)
+    forward_offset_m: float = Field(0.5, ge=-3, le=3, description="from the ego vehicle's centre")
+
+    def model(self) -> CameraModel:
+        """The shared :class:`CameraModel` this spec describes."""
+        mount = dict(height_m=self.height_m, pitch_rad=math.radians(self.pitch_deg),
+                     lateral_offset_m=self.lateral_offset_m, forward_offset_m=self.forward_offset_m)
+        if self.focal_px is not None:
+            return CameraModel(self.width, self.height, self.focal_px, self.focal_px,
+                               (self.width - 1) / 2, (self.height - 1) / 2, **mount)
+        return CameraModel.from_fov(self.width, self.height, self.hfov_deg, **mount)
+
+    @model_validator(mode="after")
+    def _possible(self) -> "Camera":
+        try:
+            self.model()
+        except CameraError as e:
+            raise ValueError(str(e)) from None
+        return self
+
+
+class Render(_Model):
+    palette_seed: int = 0
+    light_direction: tuple[float, float, float] = Field((-0.4, 0.3, -1.0), description="direction the light travels, in the road frame (x along the road, y left, z up)")
+    light_intensity: float = Field(3.0, gt=0, le=20)
+    noise_std: float = Field(0.0, ge=0, le=50, description="Gaussian sensor noise, 8-bit levels")
+    blur_px: float = Field(0.0, ge=0, le=10, description="Gaussian blur sigma, pixels")
+
+    @model_validator(mode="after")
+    def _light(self) -> "Render":
+        if math.hypot(*self.light_direction) < 1e-6:
+            raise ValueError("light_direction must be non-zero")
+        return self
+
+
+class Scenario(_Model):
+    name: str
+    seed: int = 0
+    duration_s: float = Field(10.0, gt=0, le=3600)
+    fps: float = Field(15.0, ge=1, le=120)
+    road: Road = Road()
+    traffic: Traffic = Traffic()
+    ego: Ego = Ego()
+    vehicles: list[PlacedVehicle] = []
+    events: list[Event] = []
+    camera: Camera = Camera()
+    render: Render = Render()
+
+    @property
+    def n_frames(self) -> int:
+        return int(round(self.duration_s * self.fps))
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Scenario":
+        if self.ego.lane >= self.road.lanes:
+            raise ValueError(f"ego.lane {self.ego.lane} does not exist on a {self.road.lanes}-lane road")
+        names = [v.name for v in self.vehicles]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"vehicles: duplicate names {sorted(dup)}")
+        for i, v in enumerate(self.vehicles):
+            lane = self.ego.lane + v.lane
+            if not 0 <= lane < self.road.lanes:
+                raise ValueError(f"vehicles.{i}.lane: relative lane {v.lane} from ego lane {self.ego.lane} is off the road")
+        for i, e in enumerate(self.events):
+            if e.vehicle != "ego" and e.vehicle not in names:
+                raise ValueError(f"events.{i}.vehicle: no placed vehicle named {e.vehicle!r}")
+            if e.vehicle == "ego" and not isinstance(e, SpeedChangeEvent):
+                raise ValueError(f"events.{i}: only speed_change may target the ego")
+            if isinstance(e, CutInEvent):
+                v = self.vehicles[names.index(e.vehicle)]
+                if abs(v.lane) != 1:
+                    raise ValueError(f"events.{i}: cut_in vehicle {e.vehicle!r} must start in a lane adjacent to the ego's")
+        return self
+
+
+def _format_validation_error(path: Path, err: ValidationError) -> str:
+    first = err.errors()[0]
+    loc = ".".join(str(p) for p in first["loc"] if not str(p).startswith("function-after")) or "<root>"
+    msg = first["msg"].removeprefix("Value error, ")
+    more = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
+    return f"{path}: {loc}: {msg}{more}"
+
+
+def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:
+    """Validate an already-loaded mapping (e.g. after a sweep applied overrides)."""
+    if not isinstance(data, dict):
+        raise ScenarioError(f"{source}: a scenario must be a YAML mapping")
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as e:
+        raise ScenarioError(_format_validation_error(Path(str(source)), e)) from None
+
+
+def load_scenario_dict(path: str | Path) -> dict:
+    """Read a scenario YAML into a plain dict (no validation)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise ScenarioError(f"{path}: cannot read scenario ({e.strerror or e})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark else ""
+        raise ScenarioError(f"{path}: invalid YAML{where}: {getattr(e, 'problem', e)}") from None
+    return data
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file; raises :class:`ScenarioError` naming file, field, reason."""
+    return parse_scenario(load_scenario_dict(path), path)

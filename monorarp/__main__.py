@@ -1,0 +1,5 @@
+import sys
+
+from monorarp.cli import main
+
+sys.exit(main())

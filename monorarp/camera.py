@@ -1,0 +1,213 @@
+"""The one pinhole camera model shared by the renderer and the state estimator.
+
+Frames (all right-handed, SI units):
+
+* **Ego frame** (the paper's, used for every pipeline output): origin at the
+  camera's optical centre, ``x`` lateral (positive to the right), ``y``
+  longitudinal (positive ahead, along the ego vehicle's heading), ``z`` up.
+  The flat ground plane is ``z = -height_m``.
+* **Camera frame** (OpenCV): ``x`` right, ``y`` down, ``z`` along the optical
+  axis. The camera is pitched down by ``pitch_rad`` about its ``x`` axis and has
+  no roll or yaw relative to the ego vehicle.
+* **Pixels** (OpenCV): ``u`` right, ``v`` down, pixel centres at integer
+  coordinates, no distortion.
+
+Mounting: the camera sits ``height_m`` above the ground, ``forward_offset_m``
+ahead of the ego vehicle's centre and ``lateral_offset_m`` to its right.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from monorarp.errors import UserError
+
+
+class CameraError(UserError, ValueError):
+    """An impossible or unreadable camera calibration."""
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """Intrinsics (pixels) and mounting (metres, radians) of a forward dashcam."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    height_m: float
+    pitch_rad: float = 0.0
+    lateral_offset_m: float = 0.0
+    forward_offset_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.width <= 0 or self.height <= 0:
+            problems.append(f"resolution must be positive, got {self.width}x{self.height}")
+        if not (self.fx > 0 and self.fy > 0):
+            problems.append(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
+        if not (math.isfinite(self.cx) and math.isfinite(self.cy)):
+            problems.append("principal point must be finite")
+        if not self.height_m > 0:
+            problems.append(f"mounting height must be positive, got {self.height_m} m")
+        if not abs(self.pitch_rad) < math.radians(45):
+            problems.append(f"pitch must be within +-45 deg, got {math.degrees(self.pitch_rad):.1f} deg")
+        if not problems and not (0 <= self.horizon_row <= self.height - 1):
+            problems.append(
+                f"horizon row {self.horizon_row:.1f} px lies outside the image (0..{self.height - 1}); "
+                "check pitch and cy"
+            )
+        if problems:
+            raise CameraError("; ".join(problems))
+
+    # ----------------------------------------------------------------- builders
+    @classmethod
+    def from_fov(
+        cls,
+        width: int,
+        height: int,
+        hfov_deg: float,
+        height_m: float,
+        pitch_rad: float = 0.0,
+        lateral_offset_m: float = 0.0,
+        forward_offset_m: float = 0.0,
+    ) -> "CameraModel":
+        """Square pixels, principal point at the image centre, horizontal FOV in degrees."""
+        if not 1.0 < hfov_deg < 179.0:
+            raise CameraError(f"horizontal FOV must be in (1, 179) deg, got {hfov_deg}")
+        f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+        return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0,
+                   height_m, pitch_rad, lateral_offset_m, forward_offset_m)
+
+    def scaled(self, width: int, height: int) -> "CameraModel":
+        """The same camera at another resolution (intrinsics scaled, mounting kept)."""
+        sx, sy = width / self.width, height / self.height
+        return replace(self, width=width, height=height, fx=self.fx * sx, fy=self.fy * sy,
+                       cx=(self.cx + 0.5) * sx - 0.5, cy=(self.cy + 0.5) * sy - 0.5)
+
+    # ------------------------------------------------------------- derived values
+    @property
+    def K(self) -> np.ndarray:
+        """3x3 intrinsic matrix, OpenCV convention."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def horizon_row(self) -> float:
+        """Image row (px) of the horizon: where points at infinity on the ground plane project."""
+        return self.cy - self.fy * math.tan(self.pitch_rad)
+
+    @property
+    def R_cam_from_ego(self) -> np.ndarray:
+        """Rotation taking ego-frame vectors (x right, y ahead, z up) to the camera frame."""
+        c, s = math.cos(self.pitch_rad), math.sin(self.pitch_rad)
+        # level camera: x_c = x, y_c = -z, z_c = y; then pitch down by theta about x_c.
+        level = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+        pitch = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+        return pitch @ level
+
+    # ---------------------------------------------------------------- transforms
+    def ego_to_cam(self, points_ego: np.ndarray) -> np.ndarray:
+        """(..., 3) ego-frame points (m) -> (..., 3) camera-frame points (m)."""
+        return np.asarray(points_ego, dtype=float) @ self.R_cam_from_ego.T
+
+    def cam_to_ego(self, points_cam: np.ndarray) -> np.ndarray:
+        """(..., 3) camera-frame points (m) -> (..., 3) ego-frame points (m)."""
+        return np.asarray(points_cam, dtype=float) @ self.R_cam_from_ego
+
+    def project_cam(self, points_cam: np.ndarray) -> np.ndarray:
+        """(..., 3) camera-frame points with z > 0 -> (..., 2) pixels (u, v)."""
+        p = np.asarray(points_cam, dtype=float)
+        z = p[..., 2]
+        return np.stack([self.fx * p[..., 0] / z + self.cx, self.fy * p[..., 1] / z + self.cy], axis=-1)
+
+    def project_ego(self, points_ego: np.ndarray) -> np.ndarray:
+        """(..., 3) ego-frame points -> (..., 2) pixels."""
+        return self.project_cam(self.ego_to_cam(points_ego))
+
+    def ground_point_from_pixel(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Intersect the rays through pixels (u, v) with the ground plane.
+
+        Returns (..., 3) ego-frame points; rows at or above the horizon give NaN.
+        """
+        u = np.asarray(u, dtype=float)
+        v = np.asarray(v, dtype=float)
+        rays_cam = np.stack([(u - self.cx) / self.fx, (v - self.cy) / self.fy, np.ones_like(u)], axis=-1)
+        rays_ego = self.cam_to_ego(rays_cam)
+        down = -rays_ego[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(down > 1e-12, self.height_m / down, np.nan)
+        return rays_ego * scale[..., None]
+
+    # ----------------------------------------------------------------- file I/O
+    def to_dict(self) -> dict:
+        """The ``camera.json`` layout: width, height, K, height_m, pitch_rad and the rest."""
+        d = asdict(self)
+        d["K"] = self.K.tolist()
+        d["horizon_row"] = self.horizon_row
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "camera") -> "CameraModel":
+        """Build from ``camera.json``-style dict (``K`` or fx/fy/cx/cy) or a YAML camera file.
+
+        Accepted keys: width, height; either K (3x3) or fx, fy, cx, cy, or hfov_deg;
+        height_m; pitch_rad or pitch_deg; lateral_offset_m; forward_offset_m.
+        """
+        try:
+            width, height = int(d["width"]), int(d["height"])
+            if "pitch_rad" in d:
+                pitch = float(d["pitch_rad"])
+            else:
+                pitch = math.radians(float(d.get("pitch_deg", 0.0)))
+            mount = dict(height_m=float(d["height_m"]), pitch_rad=pitch,
+                         lateral_offset_m=float(d.get("lateral_offset_m", 0.0)),
+                         forward_offset_m=float(d.get("forward_offset_m", 0.0)))
+            if "K" in d:
+                K = np.asarray(d["K"], dtype=float)
+                if K.shape != (3, 3):
+                    raise CameraError(f"{source}: K must be 3x3, got shape {K.shape}")
+                return cls(width, height, K[0, 0], K[1, 1], K[0, 2], K[1, 2], **mount)
+            if "fx" in d:
+                return cls(width, height, float(d["fx"]), float(d.get("fy", d["fx"])),
+                           float(d.get("cx", (width - 1) / 2)), float(d.get("cy", (height - 1) / 2)), **mount)
+            if "hfov_deg" in d:
+                return cls.from_fov(width, height, float(d["hfov_deg"]), **mount)
+            raise CameraError(f"{source}: needs K, fx/fy/cx/cy or hfov_deg")
+        except KeyError as e:
+            raise CameraError(f"{source}: missing field {e.args[0]!r}") from None
+        except CameraError as e:
+            msg = str(e)
+            raise CameraError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+        except (TypeError, ValueError) as e:
+            raise CameraError(f"{source}: {e}") from None
+
+    def save(self, path: str | Path) -> None:
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2))
+
+    @classmethod
+    def load(cls, path: str | Path) -> "CameraModel":
+        """Read a camera from JSON (``camera.json``) or YAML."""
+        path = Path(path)
+        try:
+            text = path.read_text()
+        except OSError as e:
+            raise CameraError(f"{path}: cannot read camera file ({e.strerror})") from None
+        try:
+            if path.suffix.lower() in (".yaml", ".yml"):
+                import yaml
+
+                data = yaml.safe_load(text)
+            else:
+                data = json.loads(text)
+        except Exception as e:  # noqa: BLE001 - any parse error is a user error here
+            raise CameraError(f"{path}: cannot parse camera file ({e})") from None
+        if not isinstance(data, dict):
+            raise CameraError(f"{path}: camera file must hold a mapping")
+        return cls.from_dict(data, source=str(path))

@@ -1,0 +1,43 @@
+"""The ``monorarp`` command. Sub-commands are plug-ins (entry-point group
+``monorarp.commands``): each entry point is a function ``register(subparsers)``
+that adds its parser and sets ``func``. This keeps :mod:`monorarp` free of any
+import of the harness while ``monorarp render``/``run``/``sweep`` live there.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from importlib.metadata import entry_points
+
+from monorarp import __version__
+from monorarp.errors import UserError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="monorarp", description="Monocular collision-risk pipeline and its simulation harness.")
+    parser.add_argument("--version", action="version", version=f"monorarp {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for ep in sorted(entry_points(group="monorarp.commands"), key=lambda e: e.name):
+        ep.load()(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except UserError as e:
+        print(f"monorarp {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"monorarp {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,61 @@
+"""Components chosen by name: a small registry plus ``importlib.metadata`` entry points.
+
+Kinds: ``detector``, ``tracker``, ``state``, ``risk``, ``ego_speed``. A plug-in
+package exposes a factory under the entry-point group ``monorarp.<kind>``::
+
+    [project.entry-points."monorarp.tracker"]
+    mytracker = "mypkg.trackers:MyTracker"
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from importlib.metadata import entry_points
+from typing import Any
+
+from monorarp.errors import UserError
+
+KINDS = ("detector", "tracker", "state", "risk", "ego_speed")
+_REGISTRY: dict[str, dict[str, Callable[..., Any]]] = {k: {} for k in KINDS}
+
+
+class UnknownComponentError(UserError, LookupError):
+    """A component name that is neither built in nor provided by an entry point."""
+
+
+def register(kind: str, name: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Decorator registering a component factory (usually a class) under ``kind``/``name``."""
+    if kind not in _REGISTRY:
+        raise ValueError(f"unknown component kind {kind!r}; kinds: {', '.join(KINDS)}")
+
+    def deco(factory: Callable[..., Any]) -> Callable[..., Any]:
+        _REGISTRY[kind][name] = factory
+        return factory
+
+    return deco
+
+
+def _load_builtins() -> None:
+    # Importing the modules runs their @register decorators.
+    from monorarp import detection, risk, state, tracking  # noqa: F401
+
+
+def available(kind: str) -> list[str]:
+    _load_builtins()
+    names = set(_REGISTRY[kind]) | {ep.name for ep in entry_points(group=f"monorarp.{kind}")}
+    return sorted(names)
+
+
+def get_factory(kind: str, name: str) -> Callable[..., Any]:
+    _load_builtins()
+    if name in _REGISTRY[kind]:
+        return _REGISTRY[kind][name]
+    for ep in entry_points(group=f"monorarp.{kind}"):
+        if ep.name == name:
+            return ep.load()
+    raise UnknownComponentError(f"unknown {kind} {name!r}; available: {', '.join(available(kind)) or 'none'}")
+
+
+def create(kind: str, name: str, **kwargs: Any) -> Any:
+    """Instantiate the component registered as ``kind``/``name`` with ``kwargs``."""
+    return get_factory(kind, name)(**kwargs)

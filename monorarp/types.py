@@ -1,0 +1,80 @@
+"""Typed records passed between pipeline stages (the paper's Table I).
+
+Images are ``uint8`` arrays of shape (H, W, 3) in **BGR** order (OpenCV's).
+Boxes are ``(x1, y1, x2, y2)`` in continuous pixel coordinates, OpenCV
+convention (pixel centres at integer coordinates): a box covering pixel
+columns 10..19 has ``x1 = 9.5`` and ``x2 = 19.5``.
+Distances and velocities are in the ego frame of :mod:`monorarp.camera`:
+``d_x`` lateral offset of the vehicle's centre (m, + right), ``d_y``
+longitudinal distance to its rear face (m, + ahead), ``v_x``/``v_y`` its
+velocity minus the ego's (m/s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+Box = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True)
+class Frame:
+    """Camera output: an image and its timestamp (s, from the source, never the wall clock)."""
+
+    index: int
+    t: float
+    image: np.ndarray
+
+
+@dataclass(frozen=True)
+class Detection:
+    box: Box
+    score: float = 1.0
+    label: str = "car"
+
+
+@dataclass(frozen=True)
+class Track:
+    """A tracked object: stable id and its box in the current frame."""
+
+    id: int
+    box: Box
+    score: float = 1.0
+    label: str = "car"
+    coasting: bool = False   # True when no detection supported it this frame
+    age: int = 0             # frames since the track was created
+
+
+@dataclass(frozen=True)
+class ObjectState:
+    """Relative state of one tracked vehicle in the ego frame (m, m/s)."""
+
+    track_id: int
+    d_x: float
+    d_y: float
+    v_x: float
+    v_y: float
+
+
+@dataclass(frozen=True)
+class RiskEstimate:
+    """Scene risk (1/s: max over vehicles of 1/TTC; 0 when none is on a collision course)."""
+
+    risk: float
+    ttc: dict[int, float | None] = field(default_factory=dict)  # track id -> TTC (s) or None
+
+
+@dataclass
+class FrameResult:
+    """Everything the pipeline produced for one frame, plus per-stage time (ms)."""
+
+    index: int
+    t: float
+    detections: list[Detection]
+    tracks: list[Track]
+    states: dict[int, ObjectState]
+    risk: RiskEstimate
+    ego_speed: float | None = None
+    timings_ms: dict[str, float] = field(default_factory=dict)
