@@ -1,0 +1,93 @@
+"""Frames/s of simulation + rendering (colour + id pass + ground truth) with 30 vehicles.
+
+Usage: python benchmarks/bench_render.py [--frames N]
+Uses harness.simulation when present, else synthetic constant-velocity traffic.
+Prints one line per resolution; timings are wall-clock on this machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from harness.ground_truth import frame_truth
+from harness.render import Renderer
+from harness.scenario import Scenario, parse_scenario
+from harness.world import VehicleState, WorldState
+
+
+def scenario_for(width: int, height: int) -> Scenario:
+    return parse_scenario({
+        "name": "bench", "seed": 1, "fps": 15,
+        "road": {"lanes": 4},
+        "traffic": {"vehicles_count": 30, "density": 1.5},
+        "ego": {"lane": 1, "speed_mps": 25.0},
+        "camera": {"width": width, "height": height},
+    })
+
+
+def synthetic_states(scenario: Scenario, n_frames: int, n_vehicles: int = 30):
+    """Constant-velocity traffic around the ego (used when harness.simulation is absent)."""
+    rng = np.random.default_rng(scenario.seed)
+    lw, lanes, dt = scenario.road.lane_width_m, scenario.road.lanes, 1.0 / scenario.fps
+    ego_lane = scenario.ego.lane
+    lane = rng.integers(0, lanes, n_vehicles)
+    x0 = 200.0 + np.sort(rng.uniform(-40, 220, n_vehicles))
+    speed = rng.uniform(20, 30, n_vehicles)
+    for k in range(n_frames):
+        t = k * dt
+        ego = VehicleState(0, 200.0 + 25.0 * t, ego_lane * lw, 0.0, 25.0, 25.0, 0.0, ego_lane, 5.0, 2.0)
+        vs = tuple(VehicleState(i + 1, float(x0[i] + speed[i] * t), float(lane[i] * lw), 0.0, float(speed[i]),
+                                float(speed[i]), 0.0, int(lane[i]), 5.0, 2.0) for i in range(n_vehicles)
+                   if abs(x0[i] - 200.0) > 6 or lane[i] != ego_lane)
+        yield WorldState(k, t, ego, vs)
+
+
+def states(scenario: Scenario, n_frames: int):
+    try:
+        from harness.simulation import simulate
+    except ImportError:
+        return synthetic_states(scenario, n_frames), "synthetic"
+    return simulate(scenario, n_frames), "harness.simulation"
+
+
+def bench(width: int, height: int, n_frames: int) -> None:
+    scenario = scenario_for(width, height)
+    with Renderer(scenario) as renderer:
+        it, source = states(scenario, n_frames + 3)
+        t_sim = t_render = t_truth = 0.0
+        n_obj = 0
+        t0 = time.perf_counter()
+        for k in range(n_frames + 3):
+            a = time.perf_counter()
+            world = next(it)
+            b = time.perf_counter()
+            frame = renderer.render(world)
+            c = time.perf_counter()
+            truth = frame_truth(world, renderer.camera, frame)
+            d = time.perf_counter()
+            if k == 2:  # warm-up done
+                t0 = d
+                t_sim = t_render = t_truth = 0.0
+                n_obj = 0
+                continue
+            t_sim, t_render, t_truth = t_sim + b - a, t_render + c - b, t_truth + d - c
+            n_obj += len(truth["objects"])
+        total = time.perf_counter() - t0
+    print(f"{width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
+          f"{n_frames / total:.1f} frames/s; per frame sim {1e3 * t_sim / n_frames:.1f} ms, "
+          f"render {1e3 * t_render / n_frames:.1f} ms, truth {1e3 * t_truth / n_frames:.1f} ms")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=60)
+    args = ap.parse_args()
+    for w, h in ((640, 360), (1280, 720)):
+        bench(w, h, args.frames)
+
+
+if __name__ == "__main__":
+    main()

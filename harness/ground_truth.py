@@ -1,0 +1,112 @@
+"""Exact per-frame ground truth, as one JSON-ready record per frame.
+
+Definitions (ego and camera frames of :mod:`monorarp.camera`; road frame of
+:mod:`harness.world`; geometry helpers in :mod:`harness.render.geometry`):
+
+* ``d_long`` (m): longitudinal distance from the camera to the vehicle's rear
+  face = the smallest ego-frame ``y`` of its four footprint corners.
+* ``d_lat`` (m): ego-frame ``x`` (positive right) of the vehicle's centre.
+* ``v_long``, ``v_lat`` (m/s): its road-frame velocity minus the ego's, rotated
+  into the ego frame (``y`` and ``x`` components).
+* ``ttc`` (s): :func:`monorarp.ttc.time_to_collision` of the vehicle's footprint
+  (its axis-aligned extent in the ego frame) against the ego's own footprint
+  (:func:`monorarp.ttc.ego_extent`) at the current relative velocity; ``None``
+  when they do not touch within 10 s.
+* ``lane_rel``: the vehicle's lane index minus the ego's.
+* ``box`` (px): the tight box of the vehicle's pixels in the id pass: pixel
+  columns c_min..c_max and rows r_min..r_max give
+  ``[c_min - 0.5, r_min - 0.5, c_max + 0.5, r_max + 0.5]`` (so clipped to the image).
+* ``visibility``: visible pixels / pixels the vehicle would cover with nothing
+  in front of it and no image border (``RenderedFrame.full_pixels``).
+* ``corners_cam`` (m): the 8 corners of its 3-D box (footprint length x width,
+  from the ground to the mesh's roof height) in the OpenCV camera frame, in the
+  order rear-left, rear-right, front-right, front-left on the ground, then the
+  same four at the roof (left/right as seen by the vehicle itself).
+
+One object per vehicle with at least one visible pixel, sorted by id.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from harness.render.geometry import box_corners_ego, road_vectors_to_ego, vehicles_footprints_ego
+from harness.render.meshes import vehicle_height
+from harness.world import WorldState
+from monorarp.camera import CameraModel
+from monorarp.ttc import HORIZON_S, ego_extent, time_to_collision
+
+
+def pixel_boxes(id_mask: np.ndarray) -> dict[int, tuple[list[float], int]]:
+    """Tight pixel box ``[x1, y1, x2, y2]`` and pixel count of every id >= 0 in the mask."""
+    flat = np.flatnonzero(id_mask.ravel() >= 0)
+    if flat.size == 0:
+        return {}
+    ids = id_mask.ravel()[flat]
+    order = np.argsort(ids, kind="stable")
+    ids, flat = ids[order], flat[order]
+    rows, cols = np.divmod(flat, id_mask.shape[1])
+    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+    counts = np.diff(np.r_[starts, ids.size])
+    r0, r1 = np.minimum.reduceat(rows, starts), np.maximum.reduceat(rows, starts)
+    c0, c1 = np.minimum.reduceat(cols, starts), np.maximum.reduceat(cols, starts)
+    return {int(i): ([c0[k] - 0.5, r0[k] - 0.5, c1[k] + 0.5, r1[k] + 0.5], int(counts[k]))
+            for k, i in enumerate(ids[starts])}
+
+
+def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Mapping[int, float] | None = None,
+                horizon_s: float = HORIZON_S) -> dict:
+    """The ground-truth record of one frame.
+
+    ``id_mask`` is the renderer's id pass, or the :class:`~harness.render.RenderedFrame`
+    itself (then ``full_pixels`` comes from it). ``full_pixels`` (id -> unoccluded
+    pixel count) is required for ``visibility``.
+    """
+    if hasattr(id_mask, "id_mask"):
+        full_pixels = id_mask.full_pixels if full_pixels is None else full_pixels
+        id_mask = id_mask.id_mask
+    if full_pixels is None:
+        raise ValueError("frame_truth needs full_pixels (RenderedFrame.full_pixels) to compute visibility")
+    ego = world.ego
+    visible = pixel_boxes(np.asarray(id_mask))
+    vehicles = [v for v in world.vehicles if v.id in visible]
+    vehicles.sort(key=lambda v: v.id)
+    record = {
+        "frame": int(world.frame),
+        "t": float(world.t),
+        "ego": {"speed": float(ego.speed), "x": float(ego.x), "y": float(ego.y),
+                "heading": float(ego.heading), "lane": int(ego.lane)},
+        "objects": [],
+    }
+    if not vehicles:
+        return record
+    foot = vehicles_footprints_ego(vehicles, ego, camera)                        # (N, 4, 2)
+    heights = np.array([vehicle_height(v.length, v.width) for v in vehicles])
+    corners_cam = camera.ego_to_cam(box_corners_ego(foot, heights, camera))      # (N, 8, 3)
+    centres = foot.mean(axis=1)                                                  # footprint centres
+    v_rel = road_vectors_to_ego(np.array([[v.vx - ego.vx, v.vy - ego.vy] for v in vehicles]), ego)
+    ex, ey = ego_extent(ego.length, ego.width, camera.forward_offset_m, camera.lateral_offset_m)
+    ttc = time_to_collision(foot[..., 0].min(1), foot[..., 0].max(1), foot[..., 1].min(1), foot[..., 1].max(1),
+                            v_rel[:, 0], v_rel[:, 1], ex, ey, horizon_s)
+    for k, v in enumerate(vehicles):
+        box, n_visible = visible[v.id]
+        full = float(full_pixels.get(v.id, n_visible))
+        record["objects"].append({
+            "id": int(v.id),
+            "name": v.name,
+            "box": [float(b) for b in box],
+            "visibility": float(min(1.0, n_visible / full)) if full > 0 else 0.0,
+            "d_long": float(foot[k, :, 1].min()),
+            "d_lat": float(centres[k, 0]),
+            "v_long": float(v_rel[k, 1]),
+            "v_lat": float(v_rel[k, 0]),
+            "ttc": None if np.isnan(ttc[k]) else float(ttc[k]),
+            "lane_rel": int(v.lane - ego.lane),
+            "corners_cam": corners_cam[k].round(6).tolist(),
+            "length": float(v.length),
+            "width": float(v.width),
+            "crashed": bool(v.crashed),
+        })
+    return record

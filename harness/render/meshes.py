@@ -1,0 +1,147 @@
+"""Low-poly car-like vehicle meshes and their colours.
+
+Model frame (see :mod:`harness.render.geometry`): X forward, Y left, Z up, origin
+on the ground at the footprint centre. Every mesh fills its length x width
+footprint exactly: the rear bumper is at X = -length/2 (so ``d_long`` measures
+the distance to it), the body sides at Y = +-width/2, and it rises from the
+ground (tyre contact) to :func:`vehicle_height`. Cars keep real proportions:
+rear overhang 0.8-1.1 m behind the rear axle, ground clearance 0.17 m, wheel
+radius 0.32 m. Vehicles longer than 7 m are trucks with box bodies.
+
+The wheel polygons (``WHEEL_SECTIONS`` sides) have a vertex straight down, so
+the tyres touch the ground along the line X = axle, Z = 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+WHEEL_SECTIONS = 12
+TRUCK_MIN_LENGTH_M = 7.0
+
+# Common car paints (RGB 0..255).
+PALETTE = np.array([
+    [235, 235, 232], [25, 25, 28], [160, 163, 168], [95, 98, 104], [170, 25, 30],
+    [25, 55, 130], [20, 30, 60], [30, 80, 50], [200, 185, 150], [225, 180, 30],
+    [210, 90, 20], [110, 20, 35], [70, 130, 180], [140, 120, 100],
+], dtype=float)
+GLASS = (30, 38, 48)
+TYRE = (22, 22, 22)
+RIM = (120, 120, 125)
+TAIL_LIGHT = (150, 10, 10)
+TRIM = (40, 40, 42)
+
+
+@dataclass(frozen=True)
+class VehicleLayout:
+    """Dimensions (m) of one vehicle's mesh, in its model frame."""
+
+    length: float
+    width: float
+    truck: bool
+    clearance: float          # underside of the body above the ground
+    wheel_radius: float
+    wheel_width: float
+    rear_axle_x: float        # X of the rear axle (negative)
+    front_axle_x: float
+    wheel_y: float            # |Y| of the wheels' outer faces
+    belt: float               # top of the lower body
+    roof: float               # total height
+
+    @property
+    def rear_overhang(self) -> float:
+        return self.rear_axle_x + self.length / 2
+
+
+def vehicle_layout(length: float, width: float) -> VehicleLayout:
+    """The mesh dimensions for a vehicle of ``length`` x ``width`` metres."""
+    if length > TRUCK_MIN_LENGTH_M:
+        r = 0.5
+        rear_oh = min(0.25 * length, 2.5)
+        return VehicleLayout(length, width, True, 0.45, r, 0.3, -length / 2 + rear_oh,
+                             length / 2 - 1.4, width / 2 - 0.05, 1.1, 3.6)
+    r = 0.32
+    rear_oh = float(np.clip(0.19 * length, 0.8, 1.1))
+    front_oh = float(np.clip(0.18 * length, 0.7, 1.0))
+    roof = 1.45 if length <= 5.5 else 2.1
+    return VehicleLayout(length, width, False, 0.17, r, 0.22, -length / 2 + rear_oh,
+                         length / 2 - front_oh, width / 2 - 0.04, 0.95, roof)
+
+
+def vehicle_height(length: float, width: float) -> float:
+    """Roof height (m) of the mesh for this footprint: the 3-D box's height."""
+    return vehicle_layout(length, width).roof
+
+
+def vehicle_color(palette_seed: int, vehicle_id: int) -> tuple[int, int, int]:
+    """Deterministic paint colour (RGB 0..255) of a vehicle."""
+    rng = np.random.default_rng([int(palette_seed) & 0xFFFFFFFF, int(vehicle_id) & 0xFFFFFFFF])
+    base = PALETTE[rng.integers(len(PALETTE))]
+    rgb = np.clip(base * rng.uniform(0.9, 1.1) + rng.normal(0.0, 6.0, 3), 0, 255)
+    return tuple(int(c) for c in np.round(rgb))
+
+
+def _box(x0, x1, y0, y1, z0, z1, color) -> trimesh.Trimesh:
+    m = trimesh.creation.box(extents=(x1 - x0, y1 - y0, z1 - z0))
+    m.apply_translation(((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2))
+    m.visual.face_colors = (*color, 255)
+    return m
+
+
+def _hull(points, color) -> trimesh.Trimesh:
+    m = trimesh.convex.convex_hull(np.asarray(points, dtype=float))
+    m.visual.face_colors = (*color, 255)
+    return m
+
+
+def _wheel(x: float, y_outer: float, side: int, radius: float, width: float) -> trimesh.Trimesh:
+    """A tyre: a prism with its axis along Y and a vertex straight down."""
+    ang = -np.pi / 2 + np.arange(WHEEL_SECTIONS) * 2 * np.pi / WHEEL_SECTIONS
+    ring = np.stack([x + radius * np.cos(ang), radius + radius * np.sin(ang)], axis=-1)
+    y_in = y_outer - width
+    pts = [(px, side * yy, pz) for yy in (y_in, y_outer) for px, pz in ring]
+    m = _hull(pts, TYRE)
+    return m
+
+
+def vehicle_trimesh(length: float, width: float, color: tuple[int, int, int]) -> trimesh.Trimesh:
+    """One merged mesh (face colours) of a vehicle in its model frame."""
+    L = vehicle_layout(length, width)
+    hl, hw = length / 2, width / 2
+    parts: list[trimesh.Trimesh] = []
+    if L.truck:
+        cab_len = 2.4
+        parts.append(_box(-hl, hl, -hw + 0.05, hw - 0.05, L.clearance, L.belt, TRIM))            # chassis
+        parts.append(_box(-hl, hl - cab_len - 0.1, -hw, hw, L.belt, L.roof, color))             # cargo box
+        parts.append(_box(hl - cab_len, hl, -hw, hw, L.belt, 2.2, color))                         # cab lower
+        parts.append(_hull([(hl - cab_len, -hw + 0.05, 2.2), (hl - cab_len, hw - 0.05, 2.2),
+                            (hl - 0.1, -hw + 0.05, 2.2), (hl - 0.1, hw - 0.05, 2.2),
+                            (hl - cab_len, -hw + 0.1, 3.0), (hl - cab_len, hw - 0.1, 3.0),
+                            (hl - 0.4, -hw + 0.1, 3.0), (hl - 0.4, hw - 0.1, 3.0)], GLASS))       # cab glass
+        parts.append(_box(-hl, -hl + 0.04, -hw + 0.1, -hw + 0.35, 0.6, 0.9, TAIL_LIGHT))
+        parts.append(_box(-hl, -hl + 0.04, hw - 0.35, hw - 0.1, 0.6, 0.9, TAIL_LIGHT))
+        axles = [L.rear_axle_x, L.rear_axle_x + 1.3, L.front_axle_x]
+    else:
+        lower_top = 0.6
+        parts.append(_box(-hl, hl, -hw, hw, L.clearance, lower_top, color))                       # bumpers + sills
+        parts.append(_box(-hl + 0.04, hl - 0.05, -hw, hw, lower_top, L.belt, color))              # upper body
+        parts.append(_box(-hl, -hl + 0.04, -hw + 0.08, -hw + 0.38, 0.66, 0.85, TAIL_LIGHT))       # tail lights
+        parts.append(_box(-hl, -hl + 0.04, hw - 0.38, hw - 0.08, 0.66, 0.85, TAIL_LIGHT))
+        parts.append(_box(-hl, -hl + 0.04, -0.26, 0.26, 0.38, 0.5, TRIM))                          # plate recess
+        tall = L.roof > 1.8
+        rear_b, front_b = (-hl + 0.25, hl - 1.0) if tall else (-hl + 0.7, hl - 1.5)
+        rear_t, front_t = (-hl + 0.35, hl - 1.3) if tall else (-hl + 1.2, hl - 2.2)
+        top = L.roof - 0.06
+        parts.append(_hull([(rear_b, -hw + 0.06, L.belt), (rear_b, hw - 0.06, L.belt),
+                            (front_b, -hw + 0.06, L.belt), (front_b, hw - 0.06, L.belt),
+                            (rear_t, -hw + 0.2, top), (rear_t, hw - 0.2, top),
+                            (front_t, -hw + 0.2, top), (front_t, hw - 0.2, top)], GLASS))        # greenhouse
+        parts.append(_box(rear_t, front_t, -hw + 0.2, hw - 0.2, top, L.roof, color))              # roof
+        axles = [L.rear_axle_x, L.front_axle_x]
+    for ax in axles:
+        for side in (-1, 1):
+            parts.append(_wheel(ax, L.wheel_y, side, L.wheel_radius, L.wheel_width))
+    return trimesh.util.concatenate(parts)

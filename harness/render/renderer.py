@@ -1,0 +1,245 @@
+"""The pyrender scene of one scenario: static road, per-vehicle meshes, camera, light.
+
+Static geometry (road surfaces and all markings) is built once as four merged
+meshes; per frame only vehicle node poses (nodes added/removed when the vehicle
+set changes) and the camera pose are updated. Lighting is a directional light
+(``render.light_direction``, ``light_intensity``) plus ambient, evaluated per
+face and baked into vertex colours (:mod:`harness.render.shading`): the road
+once, a vehicle again only when its heading moves into another 1-degree bin.
+
+Two passes per frame: a colour pass (pyrender's FLAT shader, 4x MSAA, no
+shadows) and an exact id pass (``RenderFlags.SEG``, multisampling off, so each
+pixel holds the vehicle covering its centre; ids colour-encoded as id + 1 in 24
+bits). The ego is not drawn. :mod:`harness.render.visibility` explains the
+extra sub-window id renders behind ``visibility``.
+
+pyrender's ``IntrinsicsCamera`` puts pixel centres at half-integers of its
+cx/cy (OpenGL window convention); OpenCV's are at integers, so cx/cy are passed
+shifted by +0.5 (checked by the tests against ``cv2.projectPoints``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import types
+from dataclasses import dataclass, field
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+import numpy as np  # noqa: E402
+import pyrender  # noqa: E402
+from OpenGL import GL  # noqa: E402
+
+from harness.render import geometry, meshes, road, shading, visibility  # noqa: E402
+from harness.render.sensor import apply_sensor  # noqa: E402
+from harness.scenario import Scenario  # noqa: E402
+from harness.world import VehicleState, WorldState  # noqa: E402
+from monorarp.camera import CameraModel  # noqa: E402
+
+SKY_RGB = (0.62, 0.74, 0.90)
+ZNEAR_M = 0.05
+ZFAR_M = 6000.0
+PIXEL_CENTRE_SHIFT = 0.5
+HEADING_BIN_RAD = math.radians(1.0)
+
+
+@dataclass
+class RenderedFrame:
+    """One rendered frame.
+
+    ``image``: (H, W, 3) uint8 BGR after optional noise/blur. ``id_mask``: (H, W)
+    int32 vehicle id per pixel (-1 elsewhere), noise-free. ``full_pixels``: for
+    each id in the mask, the pixels the vehicle would cover with nothing in front
+    of it and no image border (the denominator of ``visibility``).
+    """
+
+    frame: int
+    image: np.ndarray
+    id_mask: np.ndarray
+    full_pixels: dict[int, float] = field(default_factory=dict)
+
+
+def _flat_mesh(triangles: np.ndarray, colors: np.ndarray, material: pyrender.Material) -> pyrender.Mesh:
+    """(F, 3, 3) triangles with (F, 3) colours in 0..1 -> one-primitive pyrender mesh."""
+    rgba = np.concatenate([colors, np.ones((len(colors), 1))], axis=1)
+    prim = pyrender.Primitive(positions=triangles.reshape(-1, 3).astype(np.float32),
+                              color_0=np.repeat(rgba, 3, axis=0).astype(np.float32),
+                              material=material, mode=pyrender.constants.GLTF.TRIANGLES)
+    return pyrender.Mesh([prim])
+
+
+def _seg_colour(code: int) -> tuple[int, int, int]:
+    return code & 0xFF, (code >> 8) & 0xFF, (code >> 16) & 0xFF
+
+
+def _decode(seg: np.ndarray) -> np.ndarray:
+    """(H, W, >=3) uint8 id render -> (H, W) int32 codes (0 = nothing)."""
+    return (seg[..., 0].astype(np.int32) | (seg[..., 1].astype(np.int32) << 8)
+            | (seg[..., 2].astype(np.int32) << 16))
+
+
+def _read_colour_only(self, scene, flags):
+    """Replacement for pyrender's framebuffer read: resolve and read colour only
+    (no depth read/linearisation), RGBA for id passes so rows are always aligned."""
+    width, height = self._main_fb_dims
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+    fmt, ch = (GL.GL_RGBA, 4) if flags & pyrender.RenderFlags.SEG else (GL.GL_RGB, 3)
+    buf = GL.glReadPixels(0, 0, width, height, fmt, GL.GL_UNSIGNED_BYTE)
+    return np.frombuffer(buf, dtype=np.uint8).reshape(height, width, ch)[::-1], None
+
+
+@dataclass
+class _Vehicle:
+    node: pyrender.Node
+    dims: tuple[float, float]
+    triangles: np.ndarray     # (F, 3, 3) model frame
+    normals: np.ndarray       # (F, 3) model frame
+    albedo: np.ndarray        # (F, 3) sRGB 0..255
+    heading_bin: int
+
+
+class Renderer:
+    """Renders :class:`WorldState` s of one scenario as seen by its dashcam."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.camera: CameraModel = scenario.camera.model()
+        opts = scenario.render
+        self._palette_seed = opts.palette_seed
+        self._light_w = np.asarray(opts.light_direction, dtype=float)
+        self._intensity = opts.light_intensity
+        self._noise_std, self._blur_px, self._seed = opts.noise_std, opts.blur_px, scenario.seed
+        self._scene = pyrender.Scene(bg_color=(*SKY_RGB, 1.0), ambient_light=(0.0, 0.0, 0.0))
+        self._material = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0))
+        for tm in road.road_trimeshes(scenario.road).values():
+            colors = shading.shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w, self._intensity)
+            self._scene.add(_flat_mesh(tm.vertices[tm.faces], colors, self._material))
+        c = self.camera
+        self._cam = pyrender.IntrinsicsCamera(c.fx, c.fy, c.cx + PIXEL_CENTRE_SHIFT, c.cy + PIXEL_CENTRE_SHIFT,
+                                              znear=ZNEAR_M, zfar=ZFAR_M)
+        self._cam_node = self._scene.add(self._cam, pose=np.eye(4))
+        self._vehicles: dict[int, _Vehicle] = {}
+        self._pr: pyrender.OffscreenRenderer | None = pyrender.OffscreenRenderer(c.width, c.height)
+        inner = self._pr._renderer
+        inner._read_main_framebuffer = types.MethodType(_read_colour_only, inner)
+
+    # ----------------------------------------------------------------- lifecycle
+    def close(self) -> None:
+        if self._pr is not None:
+            self._pr.delete()
+            self._pr = None
+
+    def __enter__(self) -> "Renderer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------- scene
+    def _vehicle_mesh(self, entry: _Vehicle) -> pyrender.Mesh:
+        heading = entry.heading_bin * HEADING_BIN_RAD
+        # Light into the model frame: the model is rotated by -heading about Z in W.
+        light_model = shading.rotate_z(self._light_w, heading)
+        colors = shading.shade(entry.albedo, entry.normals, light_model, self._intensity)
+        return _flat_mesh(entry.triangles, colors, self._material)
+
+    def _sync_vehicles(self, vehicles: tuple[VehicleState, ...]) -> list[pyrender.Node]:
+        present = {v.id for v in vehicles}
+        for vid in [k for k in self._vehicles if k not in present]:
+            self._scene.remove_node(self._vehicles.pop(vid).node)
+        nodes = []
+        for v in vehicles:
+            dims = (v.length, v.width)
+            hbin = int(round(v.heading / HEADING_BIN_RAD))
+            entry = self._vehicles.get(v.id)
+            pose = geometry.vehicle_pose_world(v)
+            if entry is None or entry.dims != dims:
+                if entry is not None:
+                    self._scene.remove_node(entry.node)
+                tm = meshes.vehicle_trimesh(v.length, v.width, meshes.vehicle_color(self._palette_seed, v.id))
+                entry = _Vehicle(None, dims, tm.vertices[tm.faces], tm.face_normals,
+                                 tm.visual.face_colors[:, :3].astype(float), hbin)
+                entry.node = self._scene.add(self._vehicle_mesh(entry), pose=pose)
+                self._vehicles[v.id] = entry
+            else:
+                if entry.heading_bin != hbin:
+                    entry.heading_bin = hbin
+                    entry.node.mesh = self._vehicle_mesh(entry)
+                self._scene.set_pose(entry.node, pose)
+            nodes.append(entry.node)
+        return nodes
+
+    def _set_intrinsics(self, fx: float, fy: float, cx: float, cy: float, width: int, height: int) -> None:
+        self._cam.fx, self._cam.fy = fx, fy
+        self._cam.cx, self._cam.cy = cx + PIXEL_CENTRE_SHIFT, cy + PIXEL_CENTRE_SHIFT
+        self._pr.viewport_width, self._pr.viewport_height = width, height
+
+    def _prepare(self, world: WorldState):
+        """Sync the scene to ``world``; return nodes, projected 3-D boxes, camera-frame corners, drawn flags."""
+        if self._pr is None:
+            raise RuntimeError("Renderer is closed")
+        c = self.camera
+        vehicles = tuple(world.vehicles)
+        nodes = self._sync_vehicles(vehicles)
+        self._scene.set_pose(self._cam_node, geometry.camera_pose_world(world.ego, c))
+        foot = geometry.vehicles_footprints_ego(vehicles, world.ego, c)
+        heights = np.array([meshes.vehicle_height(v.length, v.width) for v in vehicles])
+        corners_cam = c.ego_to_cam(geometry.box_corners_ego(foot, heights, c))
+        boxes = visibility.projected_boxes(corners_cam, c, ZNEAR_M)
+        in_front = (corners_cam[..., 2] > ZNEAR_M).any(axis=1)
+        drawn = (in_front & (boxes[:, 2] >= -0.5) & (boxes[:, 0] <= c.width - 0.5)
+                 & (boxes[:, 3] >= -0.5) & (boxes[:, 1] <= c.height - 0.5))
+        for node, d in zip(nodes, drawn):
+            node.mesh.is_visible = bool(d)
+        return vehicles, nodes, boxes, corners_cam, drawn
+
+    # ------------------------------------------------------------------ render
+    def render(self, world: WorldState) -> RenderedFrame:
+        """Colour image, id mask and unoccluded pixel counts of one world state."""
+        c = self.camera
+        vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
+        self._set_intrinsics(c.fx, c.fy, c.cx, c.cy, c.width, c.height)
+        rgb, _ = self._pr.render(self._scene, flags=pyrender.RenderFlags.FLAT)
+        seg_map = {n: _seg_colour(v.id + 1) for n, v, d in zip(nodes, vehicles, drawn) if d}
+        if seg_map:
+            seg, _ = self._pr.render(self._scene, flags=pyrender.RenderFlags.SEG, seg_node_map=seg_map)
+            id_mask = _decode(seg) - 1
+        else:
+            id_mask = np.full((c.height, c.width), -1, dtype=np.int32)
+        full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn)
+        image = apply_sensor(np.ascontiguousarray(rgb[..., ::-1]), self._noise_std, self._blur_px,
+                             self._seed, world.frame)
+        return RenderedFrame(world.frame, image, id_mask, full)
+
+    def _full_pixels(self, id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=False) -> dict[int, float]:
+        """Unoccluded, unbounded pixel count of every vehicle visible in ``id_mask``."""
+        c = self.camera
+        counts = np.bincount((id_mask + 1).ravel())
+        visible = np.flatnonzero(counts[1:]).tolist()
+        index = {v.id: i for i, v in enumerate(vehicles)}
+        need = visibility.needs_full_render(boxes, corners_cam, drawn, c.width, c.height)
+        full = {vid: float(counts[vid + 1]) for vid in visible}
+        todo = [index[vid] for vid in visible if force or need[index[vid]]]
+        try:
+            for win, members in visibility.plan_full_renders(boxes, todo, c.width, c.height, c.width * c.height):
+                self._set_intrinsics(*win.intrinsics(c), win.width, win.height)
+                seg, _ = self._pr.render(self._scene, flags=pyrender.RenderFlags.SEG,
+                                         seg_node_map={nodes[i]: _seg_colour(k + 1) for k, i in enumerate(members)})
+                n_px = np.bincount(_decode(seg).ravel(), minlength=len(members) + 1)
+                for k, i in enumerate(members):
+                    vid = vehicles[i].id
+                    full[vid] = max(float(n_px[k + 1]) * win.scale ** 2, full[vid])
+        finally:
+            self._set_intrinsics(c.fx, c.fy, c.cx, c.cy, c.width, c.height)
+        return full
+
+    def full_pixels_rendered(self, world: WorldState, id_mask: np.ndarray) -> dict[int, float]:
+        """Like ``RenderedFrame.full_pixels`` but every vehicle through a sub-window render
+        (no shortcut for unhidden vehicles); for tests and checks."""
+        vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
+        return self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=True)

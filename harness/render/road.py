@@ -1,0 +1,88 @@
+"""Static road geometry: asphalt, lane markings, shoulders and grass, as flat rectangles.
+
+All surfaces lie in the ground plane and tile it without overlap (a dashed line's
+gaps are asphalt rectangles), so nothing z-fights. Road frame (x along the road
+from 0 to ``length_m``, y to the right, lane i centred at y = i * lane_width).
+Lane boundary i (0..lanes) is the line y = (i - 0.5) * lane_width; a marking of
+``width_m`` is centred on it. Inner boundaries are dashed: stripes of
+``stripe_length_m`` starting at x = k * period_m; the outer edges are solid when
+``solid_edges`` (else asphalt). Shoulders extend ``shoulder_width_m`` beyond each
+edge line's centre (at least to its outer side); grass beyond, and before/after
+the road's ends.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from harness.scenario import Road
+
+GRASS_EXTENT_M = 2000.0
+
+SURFACE_COLORS = {  # RGB 0..255
+    "asphalt": (60, 60, 62),
+    "marking": (235, 235, 228),
+    "shoulder": (112, 106, 96),
+    "grass": (66, 96, 44),
+}
+
+
+def road_rectangles(road: Road) -> dict[str, np.ndarray]:
+    """Road-frame rectangles ``(K, 4)`` rows ``[x0, x1, y0, y1]`` (m) per surface kind."""
+    m = road.markings
+    lw, half = road.lane_width_m, road.markings.width_m / 2
+    length = road.length_m
+    bounds = (np.arange(road.lanes + 1) - 0.5) * lw
+    y_left, y_right = bounds[0], bounds[-1]
+    out_l = y_left - max(road.shoulder_width_m, half)
+    out_r = y_right + max(road.shoulder_width_m, half)
+    rects: dict[str, list] = {k: [] for k in SURFACE_COLORS}
+
+    # Lanes (between marking strips) and the solid/absent edge lines.
+    for b0, b1 in zip(bounds[:-1], bounds[1:]):
+        rects["asphalt"].append([0.0, length, b0 + half, b1 - half])
+    edge_kind = "marking" if m.solid_edges else "asphalt"
+    for yb in (y_left, y_right):
+        rects[edge_kind].append([0.0, length, yb - half, yb + half])
+
+    # Dashed inner lines: stripes at [k P, k P + S], asphalt gaps between.
+    starts = np.arange(0.0, length, m.period_m)
+    s0, s1 = starts, np.minimum(starts + m.stripe_length_m, length)
+    g0, g1 = s1, np.minimum(starts + m.period_m, length)
+    keep = g1 > g0
+    for yb in bounds[1:-1]:
+        for x0, x1 in zip(s0, s1):
+            rects["marking"].append([x0, x1, yb - half, yb + half])
+        for x0, x1 in zip(g0[keep], g1[keep]):
+            rects["asphalt"].append([x0, x1, yb - half, yb + half])
+
+    # Shoulders, then grass all around.
+    rects["shoulder"] += [[0.0, length, out_l, y_left - half], [0.0, length, y_right + half, out_r]]
+    g = GRASS_EXTENT_M
+    rects["grass"] += [[-g, length + g, out_l - g, out_l], [-g, length + g, out_r, out_r + g],
+                       [-g, 0.0, out_l, out_r], [length, length + g, out_l, out_r]]
+    result = {}
+    for k, v in rects.items():
+        a = np.asarray(v, dtype=float).reshape(-1, 4)
+        result[k] = a[(a[:, 1] > a[:, 0]) & (a[:, 3] > a[:, 2])]
+    return result
+
+
+def rectangles_trimesh(rects: np.ndarray, color: tuple[int, int, int]) -> trimesh.Trimesh:
+    """Road-frame rectangles -> one upward-facing ground mesh in the world frame W (Y = -y)."""
+    x0, x1, y0, y1 = rects.T
+    # Corners in W, counter-clockwise seen from above (+Z): Y = -y.
+    corners = np.stack([np.stack([x0, -y1], -1), np.stack([x1, -y1], -1),
+                        np.stack([x1, -y0], -1), np.stack([x0, -y0], -1)], axis=1)
+    verts = np.concatenate([corners.reshape(-1, 2), np.zeros((corners.size // 2, 1))], axis=1)
+    base = 4 * np.arange(len(rects))[:, None]
+    faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]], axis=0)
+    mesh = trimesh.Trimesh(verts, faces, process=False)
+    mesh.visual.face_colors = (*color, 255)
+    return mesh
+
+
+def road_trimeshes(road: Road) -> dict[str, trimesh.Trimesh]:
+    """One merged W-frame mesh per surface kind (asphalt, marking, shoulder, grass)."""
+    return {k: rectangles_trimesh(r, SURFACE_COLORS[k]) for k, r in road_rectangles(road).items() if len(r)}

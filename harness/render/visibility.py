@@ -1,0 +1,121 @@
+"""Which vehicles need an extra render to count their unoccluded, unbounded pixels.
+
+``visibility`` = visible pixels / pixels the vehicle would cover if nothing hid it
+and the image had no border. A vehicle whose projected 3-D box lies inside the
+image and overlaps no nearer vehicle's projected box covers exactly its visible
+pixels (its mesh lies inside its box), so its ratio is 1 without another render.
+The others are rendered alone in a sub-window of the (virtual, unbounded) image
+plane around their projected box, with the same rasteriser and the principal
+point shifted by whole pixels, so the pixel grid is the same as the image's.
+The virtual canvas reaches one image size beyond each border; very large windows
+are rendered at an integer downscale ``s`` and their count multiplied by s^2.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from monorarp.camera import CameraModel
+
+
+@dataclass(frozen=True)
+class Window:
+    """A sub-window of the virtual image: full-resolution pixel columns x0.. and rows y0..,
+    rendered as ``width`` x ``height`` pixels of ``scale`` x ``scale`` full-resolution pixels."""
+
+    x0: int
+    y0: int
+    width: int
+    height: int
+    scale: int
+
+    def intrinsics(self, camera: CameraModel) -> tuple[float, float, float, float]:
+        """(fx, fy, cx, cy) of the window's own pixel grid (OpenCV convention)."""
+        s = self.scale
+        return (camera.fx / s, camera.fy / s,
+                (camera.cx - self.x0 - (s - 1) / 2) / s, (camera.cy - self.y0 - (s - 1) / 2) / s)
+
+
+def projected_boxes(corners_cam: np.ndarray, camera: CameraModel, znear: float) -> np.ndarray:
+    """(N, 4) boxes [u0, v0, u1, v1] (px) of the projected 3-D boxes; +-inf when a corner
+    lies closer than ``znear`` to the camera plane (the projection is then unbounded)."""
+    n = corners_cam.shape[0]
+    out = np.empty((n, 4))
+    if n == 0:
+        return out
+    z = corners_cam[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = camera.project_cam(corners_cam)
+    out[:, :2] = uv.min(axis=1)
+    out[:, 2:] = uv.max(axis=1)
+    near = (z <= znear).any(axis=1)
+    out[near] = (-np.inf, -np.inf, np.inf, np.inf)
+    return out
+
+
+def needs_full_render(boxes: np.ndarray, corners_cam: np.ndarray, drawn: np.ndarray,
+                      width: int, height: int, margin: float = 1.0) -> np.ndarray:
+    """(N,) bool: vehicles that may be truncated by the border or hidden by another drawn vehicle."""
+    n = boxes.shape[0]
+    inside = ((boxes[:, 0] >= margin - 0.5) & (boxes[:, 1] >= margin - 0.5)
+              & (boxes[:, 2] <= width - 0.5 - margin) & (boxes[:, 3] <= height - 0.5 - margin))
+    z = corners_cam[..., 2]
+    zmin, zmax = z.min(axis=1), z.max(axis=1)
+    b = boxes
+    overlap = ((b[:, None, 0] <= b[None, :, 2] + margin) & (b[None, :, 0] <= b[:, None, 2] + margin)
+               & (b[:, None, 1] <= b[None, :, 3] + margin) & (b[None, :, 1] <= b[:, None, 3] + margin))
+    # j can hide i only if some of j is nearer than some of i.
+    can_hide = overlap & (zmin[None, :] < zmax[:, None]) & drawn[None, :] & ~np.eye(n, dtype=bool)
+    return ~inside | can_hide.any(axis=1)
+
+
+def full_window(box: np.ndarray, width: int, height: int, max_pixels: int) -> Window | None:
+    """The sub-window around one projected box, clipped to the virtual canvas
+    [-width, 2 width) x [-height, 2 height); None when it is empty."""
+    x0 = max(math.floor(box[0]) - 1, -width) if np.isfinite(box[0]) else -width
+    y0 = max(math.floor(box[1]) - 1, -height) if np.isfinite(box[1]) else -height
+    x1 = min(math.ceil(box[2]) + 2, 2 * width) if np.isfinite(box[2]) else 2 * width
+    y1 = min(math.ceil(box[3]) + 2, 2 * height) if np.isfinite(box[3]) else 2 * height
+    if x1 <= x0 or y1 <= y0:
+        return None
+    area = (x1 - x0) * (y1 - y0)
+    s = max(1, math.ceil(math.sqrt(area / max_pixels)))
+    return Window(x0, y0, math.ceil((x1 - x0) / s), math.ceil((y1 - y0) / s), s)
+
+
+def _overlaps(a: np.ndarray, b: np.ndarray, margin: float) -> bool:
+    return bool(a[0] <= b[2] + margin and b[0] <= a[2] + margin and a[1] <= b[3] + margin and b[1] <= a[3] + margin)
+
+
+def plan_full_renders(boxes: np.ndarray, indices, width: int, height: int,
+                      max_pixels: int) -> list[tuple[Window, list[int]]]:
+    """Group vehicles ``indices`` into as few sub-window renders as possible.
+
+    Vehicles share a render only when their projected boxes are disjoint (then
+    they cannot hide each other) and their joint window is a full-resolution one
+    of at most ``max_pixels``; the others get a window each.
+    """
+    groups: list[tuple[np.ndarray, list[int]]] = []
+    singles: list[tuple[Window, list[int]]] = []
+    for i in indices:
+        box = boxes[i]
+        win = full_window(box, width, height, max_pixels)
+        if win is None:
+            continue
+        if win.scale > 1:
+            singles.append((win, [i]))
+            continue
+        for k, (ubox, members) in enumerate(groups):
+            if any(_overlaps(boxes[j], box, 1.0) for j in members):
+                continue
+            joined = np.r_[np.minimum(ubox[:2], box[:2]), np.maximum(ubox[2:], box[2:])]
+            jw = full_window(joined, width, height, max_pixels)
+            if jw is not None and jw.scale == 1:
+                groups[k] = (joined, members + [i])
+                break
+        else:
+            groups.append((np.asarray(box, dtype=float), [i]))
+    return [(full_window(ubox, width, height, max_pixels), members) for ubox, members in groups] + singles

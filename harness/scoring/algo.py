@@ -1,0 +1,114 @@
+"""Pure scoring maths (no I/O): error statistics, range bins, warnings, precision/recall.
+
+Every statistic over an empty set is ``nan``; :mod:`harness.scoring.evaluate`
+turns ``nan`` into JSON ``null`` ("nothing to score").
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+#: Longitudinal range bins of the ground-truth distance ``d_long`` (m), [lo, hi).
+RANGE_BINS: dict[str, tuple[float, float]] = {
+    "0-10": (0.0, 10.0),
+    "10-20": (10.0, 20.0),
+    "20-40": (20.0, 40.0),
+    "40-80": (40.0, 80.0),
+}
+#: Wider spans the issue's accuracy targets are stated over (m), [lo, hi).
+TARGET_SPANS: dict[str, tuple[float, float]] = {"5-40": (5.0, 40.0), "40-80": (40.0, 80.0)}
+
+DEFAULT_WARNING_S = 2.0
+
+
+def _nan_stat(fn, x: np.ndarray) -> float:
+    return float(fn(x)) if x.size else float("nan")
+
+
+def summary(values: Sequence[float] | np.ndarray, prefix: str = "", unit: str = "") -> dict[str, float]:
+    """Median, mean and 90th percentile of ``values`` (NaNs dropped), keyed ``{prefix}median{unit}``..."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    return {
+        f"{prefix}median{unit}": _nan_stat(np.median, x),
+        f"{prefix}mean{unit}": _nan_stat(np.mean, x),
+        f"{prefix}p90{unit}": _nan_stat(lambda v: np.percentile(v, 90), x),
+    }
+
+
+def error_stats(est: Sequence[float] | np.ndarray, gt: Sequence[float] | np.ndarray,
+                relative: bool = True, unit: str = "_m") -> dict[str, float | int]:
+    """Errors of ``est`` against ``gt`` over the pairs where both are finite.
+
+    Absolute error |est - gt| (median/mean/p90, key suffix ``unit``), the signed
+    bias mean(est - gt), and with ``relative`` the relative error
+    |est - gt| / |gt| (pairs with gt == 0 excluded from it). ``count`` = pairs scored.
+    """
+    est = np.asarray(est, dtype=float)
+    gt = np.asarray(gt, dtype=float)
+    ok = np.isfinite(est) & np.isfinite(gt)
+    err = est[ok] - gt[ok]
+    out: dict[str, float | int] = {"count": int(ok.sum())}
+    out.update(summary(np.abs(err), "abs_err_", unit))
+    out[f"bias{unit}"] = _nan_stat(np.mean, err)
+    if relative:
+        g = gt[ok]
+        nz = g != 0
+        out.update(summary(np.abs(err[nz]) / np.abs(g[nz]), "rel_err_"))
+    return out
+
+
+def bin_labels(d_long: Sequence[float] | np.ndarray, bins: dict[str, tuple[float, float]] = RANGE_BINS) -> np.ndarray:
+    """The bin label of each distance (object array; None outside every bin)."""
+    d = np.asarray(d_long, dtype=float)
+    labels = np.full(d.shape, None, dtype=object)
+    for name, (lo, hi) in bins.items():
+        labels[(d >= lo) & (d < hi)] = name
+    return labels
+
+
+def binned_error_stats(est, gt, d_long, bins: dict[str, tuple[float, float]] = RANGE_BINS,
+                       relative: bool = True, unit: str = "_m") -> dict[str, dict[str, float | int]]:
+    """:func:`error_stats` within each range bin of the ground-truth ``d_long`` (m)."""
+    est, gt, d = (np.asarray(a, dtype=float) for a in (est, gt, d_long))
+    return {name: error_stats(est[(d >= lo) & (d < hi)], gt[(d >= lo) & (d < hi)], relative, unit)
+            for name, (lo, hi) in bins.items()}
+
+
+def ratio(num: int, den: int) -> float:
+    """num / den, nan when den == 0."""
+    return num / den if den else float("nan")
+
+
+def precision_recall(tp: int, n_pred: int, n_true: int) -> dict[str, float | int]:
+    """Precision tp/n_pred and recall tp/n_true (nan when the denominator is 0), plus the counts."""
+    if not 0 <= tp <= min(n_pred, n_true):
+        raise ValueError(f"inconsistent counts tp={tp}, predicted={n_pred}, true={n_true}")
+    p, r = ratio(tp, n_pred), ratio(tp, n_true)
+    f1 = 2 * p * r / (p + r) if (np.isfinite(p) and np.isfinite(r) and p + r > 0) else float("nan")
+    return {"precision": p, "recall": r, "f1": f1, "tp": tp, "fp": n_pred - tp, "fn": n_true - tp}
+
+
+def warnings_from_ttc(ttc: Sequence[float | None] | np.ndarray, threshold_s: float = DEFAULT_WARNING_S) -> np.ndarray:
+    """Warning flags: TTC known (not None/NaN) and strictly below ``threshold_s``."""
+    t = np.array([np.nan if v is None else v for v in ttc], dtype=float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(t) & (t < threshold_s)
+
+
+def warning_classification(ttc_est, ttc_gt, threshold_s: float = DEFAULT_WARNING_S) -> dict[str, float | int]:
+    """Precision/recall of estimated TTC warnings against ground-truth ones, pair by pair.
+
+    ``ttc_est``/``ttc_gt``: the TTC (s, None/NaN = no collision within the horizon)
+    of the same object-frames. Precision is nan when nothing was warned, recall
+    nan when nothing should have been.
+    """
+    w_est = warnings_from_ttc(ttc_est, threshold_s)
+    w_gt = warnings_from_ttc(ttc_gt, threshold_s)
+    if w_est.shape != w_gt.shape:
+        raise ValueError("ttc_est and ttc_gt must have the same length")
+    out = precision_recall(int((w_est & w_gt).sum()), int(w_est.sum()), int(w_gt.sum()))
+    out["threshold_s"] = float(threshold_s)
+    return out

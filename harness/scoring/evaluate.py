@@ -1,0 +1,234 @@
+"""Scoring orchestration: per-frame truths + pipeline FrameResults -> records and ``metrics.json``.
+
+Rules (all configurable in :class:`EvalConfig`):
+
+* **Matching**: each frame, tracks are matched to ground-truth objects by
+  Hungarian assignment on IoU, pairs below ``min_iou`` (0.5) never match.
+* **Counted objects**: a GT object counts when its visibility is at least
+  ``min_visibility`` (0.3) and its ``d_long`` at most ``max_range_m`` (80 m, the
+  last range bin). Other objects are *ignored*: missing them is no error, and a
+  track or detection matching one is dropped from that frame (not a false
+  positive). Detection and tracking (MOT) metrics use this rule.
+* **State errors** (distance, lateral, velocity) over counted matched
+  object-frames whose track has a state, with ``0 <= d_long < 80`` (the union
+  of the range bins): ``d_long`` vs ``d_y``, ``d_lat`` vs ``d_x``, ``v_long`` vs
+  ``v_y`` (and ``v_lat`` vs ``v_x`` under ``rel_velocity.lateral``).
+* **TTC warnings**: over counted matched object-frames, warning = TTC < threshold;
+  a track with no TTC (none within the 10 s horizon, or no state) warns nothing.
+  ``frame_warning``: per frame, the scene warns when any estimated TTC is below
+  the threshold, truth when any counted object's is.
+* Statistics over nothing (no pairs, no warnings) are ``null`` in JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from harness.scoring import algo
+from harness.scoring.match import MIN_IOU, as_boxes, match_boxes, split_ignored
+from harness.scoring.mot import MotScorer
+from harness.scoring.records import ObjectRecord
+from monorarp.types import FrameResult
+
+NAN = float("nan")
+STAGES = ("detector", "tracker", "state", "risk", "total")
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    warning_threshold_s: float = algo.DEFAULT_WARNING_S
+    min_iou: float = MIN_IOU
+    min_visibility: float = 0.3
+    max_range_m: float = 80.0
+
+
+def _f(v) -> float:
+    return NAN if v is None else float(v)
+
+
+def counted_mask(objects: Sequence[Mapping], cfg: EvalConfig) -> np.ndarray:
+    """Which GT objects count (visibility and range rule of the module docstring)."""
+    return np.array([o["visibility"] >= cfg.min_visibility and o["d_long"] <= cfg.max_range_m for o in objects],
+                    dtype=bool)
+
+
+def frame_records(truth: Mapping, result: FrameResult, cfg: EvalConfig) -> list[ObjectRecord]:
+    """Side-by-side records of one frame (see :mod:`harness.scoring.records`)."""
+    objects = truth["objects"]
+    counted = counted_mask(objects, cfg)
+    tracks = result.tracks
+    gt_boxes = as_boxes([o["box"] for o in objects])
+    tr_boxes = as_boxes([t.box for t in tracks])
+    match = {g: (e, iou) for g, e, iou in match_boxes(gt_boxes, tr_boxes, cfg.min_iou)}
+    frame, t = int(truth["frame"]), float(truth["t"])
+    recs: list[ObjectRecord] = []
+    used = set()
+
+    def fill_track(r: ObjectRecord, tr) -> None:
+        r.track_id, r.coasting = tr.id, tr.coasting
+        r.est_x1, r.est_y1, r.est_x2, r.est_y2 = map(float, tr.box)
+        st = result.states.get(tr.id)
+        if st is not None:
+            r.d_y_est, r.d_x_est, r.v_y_est, r.v_x_est = st.d_y, st.d_x, st.v_y, st.v_x
+        r.ttc_est = _f(result.risk.ttc.get(tr.id))
+
+    for g, o in enumerate(objects):
+        r = ObjectRecord(frame=frame, t=t, gt_id=int(o["id"]), counted=bool(counted[g]),
+                         visibility=float(o["visibility"]), d_long_gt=_f(o["d_long"]), d_lat_gt=_f(o["d_lat"]),
+                         v_long_gt=_f(o["v_long"]), v_lat_gt=_f(o["v_lat"]), ttc_gt=_f(o.get("ttc")))
+        r.gt_x1, r.gt_y1, r.gt_x2, r.gt_y2 = map(float, o["box"])
+        if g in match:
+            e, iou = match[g]
+            used.add(e)
+            r.matched, r.iou = True, iou
+            fill_track(r, tracks[e])
+        recs.append(r)
+    for e, tr in enumerate(tracks):
+        if e not in used:
+            r = ObjectRecord(frame=frame, t=t)
+            fill_track(r, tr)
+            recs.append(r)
+    return recs
+
+
+def _column(recs: Sequence[ObjectRecord], name: str) -> np.ndarray:
+    return np.array([getattr(r, name) for r in recs], dtype=float)
+
+
+def state_metrics(records: Sequence[ObjectRecord], cfg: EvalConfig) -> dict[str, Any]:
+    """Distance, lateral, velocity and TTC sections of ``metrics.json``."""
+    pairs = [r for r in records if r.counted and r.matched]
+    d_gt = _column(pairs, "d_long_gt")
+    in_range = (d_gt >= 0) & (d_gt < max(hi for _, hi in algo.RANGE_BINS.values()))
+    scored = [r for r, ok in zip(pairs, in_range) if ok]
+    col = {n: _column(scored, n) for n in ("d_long_gt", "d_y_est", "d_lat_gt", "d_x_est", "v_long_gt",
+                                           "v_y_est", "v_lat_gt", "v_x_est")}
+    distance = algo.error_stats(col["d_y_est"], col["d_long_gt"], relative=True, unit="_m")
+    distance["by_range"] = algo.binned_error_stats(col["d_y_est"], col["d_long_gt"], col["d_long_gt"])
+    distance["by_span"] = algo.binned_error_stats(col["d_y_est"], col["d_long_gt"], col["d_long_gt"],
+                                                  bins=algo.TARGET_SPANS)
+    lateral = algo.error_stats(col["d_x_est"], col["d_lat_gt"], relative=False, unit="_m")
+    velocity = algo.error_stats(col["v_y_est"], col["v_long_gt"], relative=False, unit="_mps")
+    velocity["lateral"] = algo.error_stats(col["v_x_est"], col["v_lat_gt"], relative=False, unit="_mps")
+
+    ttc_est, ttc_gt = _column(pairs, "ttc_est"), _column(pairs, "ttc_gt")
+    ttc = {"warning": algo.warning_classification(ttc_est, ttc_gt, cfg.warning_threshold_s)}
+    both = algo.error_stats(ttc_est, ttc_gt, relative=False, unit="_s")  # pairs where both have a TTC
+    ttc.update({k: v for k, v in both.items()})
+    return {"distance": distance, "lateral": lateral, "rel_velocity": velocity, "ttc": ttc,
+            "pairs": {"matched_counted": len(pairs), "in_range": len(scored),
+                      "with_state": int(np.isfinite(col["d_y_est"]).sum())}}
+
+
+def frame_warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig) -> dict:
+    """Scene-level warnings: does the frame contain any TTC below the threshold?"""
+    thr = cfg.warning_threshold_s
+    est = [bool(algo.warnings_from_ttc(list(r.risk.ttc.values()), thr).any()) for r in results]
+    gt = []
+    for tr in truths:
+        objs = [o for o, c in zip(tr["objects"], counted_mask(tr["objects"], cfg)) if c]
+        gt.append(bool(algo.warnings_from_ttc([o.get("ttc") for o in objs], thr).any()))
+    est_a, gt_a = np.array(est, dtype=bool), np.array(gt, dtype=bool)
+    return algo.precision_recall(int((est_a & gt_a).sum()), int(est_a.sum()), int(gt_a.sum()))
+
+
+def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult],
+                               cfg: EvalConfig) -> tuple[dict, dict]:
+    """Detection precision/recall at ``min_iou`` and motmetrics tracking metrics."""
+    mot = MotScorer(cfg.min_iou)
+    tp = n_pred = n_true = 0
+    for truth, res in zip(truths, results):
+        objs = truth["objects"]
+        counted = counted_mask(objs, cfg)
+        gt_boxes = as_boxes([o["box"] for o in objs])
+        det_boxes = as_boxes([d.box for d in res.detections])
+        kept, ignored = split_ignored(gt_boxes, counted, det_boxes, cfg.min_iou)
+        tp += len(kept)
+        n_pred += int((~ignored).sum())
+        n_true += int(counted.sum())
+        mot.update([o["id"] for o in objs], gt_boxes, counted, [t.id for t in res.tracks],
+                   [t.box for t in res.tracks], frame=int(truth["frame"]))
+    detection = algo.precision_recall(tp, n_pred, n_true)
+    detection["min_iou"] = cfg.min_iou
+    m = mot.compute()
+    tracking = {"mota": m["mota"], "motp": m["motp"], "idf1": m["idf1"], "idp": m["idp"], "idr": m["idr"],
+                "id_switches": int(m["num_switches"]), "false_positives": int(m["num_false_positives"]),
+                "misses": int(m["num_misses"]), "objects": int(m["num_objects"]),
+                "unique_objects": int(m["num_unique_objects"]), "fragmentations": int(m["num_fragmentations"]),
+                "mostly_tracked": int(m["mostly_tracked"]), "partially_tracked": int(m["partially_tracked"]),
+                "mostly_lost": int(m["mostly_lost"]), "precision": m["precision"], "recall": m["recall"]}
+    return detection, tracking
+
+
+def runtime_metrics(results: Sequence[FrameResult], wall_time_s: float | None) -> tuple[dict, float]:
+    """Mean (and p90) per-frame time of each stage (ms) and frames per second of wall time."""
+    keys = list(STAGES) + sorted({k for r in results for k in r.timings_ms} - set(STAGES))
+    rt: dict[str, Any] = {}
+    p90: dict[str, float] = {}
+    for k in keys:
+        x = np.array([r.timings_ms[k] for r in results if k in r.timings_ms], dtype=float)
+        rt[k] = float(x.mean()) if x.size else NAN
+        p90[k] = float(np.percentile(x, 90)) if x.size else NAN
+    rt["p90"] = p90
+    fps = len(results) / wall_time_s if wall_time_s and wall_time_s > 0 else NAN
+    return rt, fps
+
+
+def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig = EvalConfig(),
+             wall_time_s: float | None = None, run_info: Mapping | None = None) -> tuple[dict, list[ObjectRecord]]:
+    """Score a run. ``truths[i]`` and ``results[i]`` must describe the same frame.
+
+    Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`jsonable`.
+    """
+    if len(truths) != len(results):
+        raise ValueError(f"{len(truths)} truths but {len(results)} results")
+    for tr, res in zip(truths, results):
+        if int(tr["frame"]) != res.index:
+            raise ValueError(f"truth frame {tr['frame']} paired with result frame {res.index}")
+    records = [r for tr, res in zip(truths, results) for r in frame_records(tr, res, cfg)]
+    sm = state_metrics(records, cfg)
+    sm["ttc"]["frame_warning"] = frame_warning_metrics(truths, results, cfg)
+    detection, tracking = detection_tracking_metrics(truths, results, cfg)
+    runtime, fps = runtime_metrics(results, wall_time_s)
+    metrics = {
+        "frames": len(results),
+        **{k: sm[k] for k in ("distance", "lateral", "rel_velocity", "ttc")},
+        "tracking": tracking,
+        "detection": detection,
+        "runtime_ms": runtime,
+        "fps": fps,
+        "wall_time_s": NAN if wall_time_s is None else float(wall_time_s),
+        "counts": {"gt_object_frames": sum(len(t["objects"]) for t in truths),
+                   "counted_object_frames": int(sum(r.counted for r in records if r.gt_id is not None)),
+                   "track_frames": sum(len(r.tracks) for r in results),
+                   "detections": sum(len(r.detections) for r in results), **sm["pairs"]},
+        "scoring": asdict(cfg),
+        "config": dict(run_info or {}),
+    }
+    return metrics, records
+
+
+def jsonable(obj: Any) -> Any:
+    """Nested dicts/lists with numpy scalars -> plain JSON types; NaN/inf -> None."""
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    return obj
+
+
+def write_metrics(metrics: Mapping, path: str | Path) -> None:
+    Path(path).write_text(json.dumps(jsonable(metrics), indent=2, allow_nan=False) + "\n")

@@ -1,0 +1,59 @@
+"""CLEAR MOT and identity metrics (py-motmetrics) from per-frame boxes.
+
+Counting rule: each frame's ground-truth objects are split into *counted*
+ones (by default visibility >= 0.3 and within the evaluation range; see
+:class:`harness.scoring.evaluate.EvalConfig`) and *ignored* ones. Tracks are
+first matched (Hungarian, IoU >= 0.5) against all objects; tracks matched to
+an ignored object are removed from that frame, and ignored objects are not
+given to the accumulator: they are neither misses nor false positives
+(MOTChallenge's distractor rule). Everything left goes to
+``motmetrics.MOTAccumulator`` with distance 1 - IoU (NaN below IoU 0.5),
+which does its own CLEAR-MOT matching with identity continuity.
+``motp`` is therefore the mean (1 - IoU) of matched pairs (lower is better).
+
+The distance matrix is computed here: motmetrics 1.4's ``distances.iou_matrix``
+calls ``np.asfarray``, removed in numpy 2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import motmetrics as mm
+import numpy as np
+
+from harness.scoring.match import MIN_IOU, as_boxes, iou_matrix, split_ignored
+
+METRICS = ("num_frames", "mota", "motp", "idf1", "idp", "idr", "num_switches", "num_false_positives",
+           "num_misses", "num_objects", "num_matches", "num_fragmentations", "mostly_tracked",
+           "partially_tracked", "mostly_lost", "num_unique_objects", "precision", "recall")
+
+
+class MotScorer:
+    """Feeds frames into a ``MOTAccumulator``; :meth:`compute` returns the metrics."""
+
+    def __init__(self, min_iou: float = MIN_IOU) -> None:
+        self.min_iou = min_iou
+        self.acc = mm.MOTAccumulator(auto_id=False)
+        self._frame = 0
+
+    def update(self, gt_ids: Sequence[int], gt_boxes, counted: Sequence[bool],
+               track_ids: Sequence[int], track_boxes, frame: int | None = None) -> None:
+        """One frame: GT ids/boxes with their counted mask, track ids/boxes."""
+        gt_boxes, track_boxes = as_boxes(gt_boxes), as_boxes(track_boxes)
+        counted = np.asarray(counted, dtype=bool).reshape(-1)
+        _, ignored_tracks = split_ignored(gt_boxes, counted, track_boxes, self.min_iou)
+        keep = ~ignored_tracks
+        g_ids = [int(i) for i, c in zip(gt_ids, counted) if c]
+        h_ids = [int(i) for i, k in zip(track_ids, keep) if k]
+        iou = iou_matrix(gt_boxes[counted], track_boxes[keep])
+        dist = np.where(iou >= self.min_iou, 1.0 - iou, np.nan)
+        fid = self._frame if frame is None else int(frame)
+        self.acc.update(g_ids, h_ids, dist, frameid=fid)
+        self._frame = fid + 1
+
+    def compute(self) -> dict[str, float]:
+        """The :data:`METRICS` as plain floats (nan when undefined, e.g. MOTA with no objects)."""
+        mh = mm.metrics.create()
+        df = mh.compute(self.acc, metrics=list(METRICS), name="run")
+        return {k: float(df.loc["run", k]) for k in METRICS}

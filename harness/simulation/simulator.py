@@ -1,0 +1,179 @@
+"""Steps a scenario's highway-env world once per frame and exposes each frame as a :class:`WorldState`.
+
+``Simulation(scenario)`` builds the road (:mod:`.road`), the ego (id 0), the
+placed vehicles (ids 1..P in file order) and the random traffic (ids P+1..N in
+placement order) — deterministically for ``scenario.seed``. Each
+:meth:`Simulation.step` runs ``road.act(); road.step(dt)`` exactly once with
+``dt = 1 / fps``; frame ``k`` has ``t = k / fps`` (frame count, no float
+accumulation). highway-env's collision checks stay on (``crashed`` flags).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from harness import scenario as sc
+from harness.scenario import ScenarioError
+from harness.simulation.events import CutInStart, timed_events
+from harness.simulation.placement import (
+    EGO_START_X_M, ROAD_START_MARGIN_M, Footprint, cut_in_distance, placed_centre_x, traffic_slots)
+from harness.simulation.road import build_road, lane_centre_y
+from harness.simulation.vehicles import Clock, ScenarioVehicle, StationaryVehicle
+from harness.world import VehicleState, WorldState
+
+LOOKAHEAD_M = 200.0
+"""Road the ego must still have ahead of it at the scenario's end (m)."""
+
+
+class Simulation:
+    """A scenario's world, advanced one frame (``dt = 1 / fps``) per :meth:`step`."""
+
+    def __init__(self, scenario: sc.Scenario) -> None:
+        self.scenario = scenario
+        self.fps = float(scenario.fps)
+        self.dt = 1.0 / self.fps
+        self._clock = Clock(self.fps)
+        road_seed, traffic_seed = np.random.SeedSequence(scenario.seed).spawn(2)
+        self.road = build_road(scenario.road, np.random.default_rng(road_seed))
+        _check_events(scenario)
+        _check_road_length(scenario)
+        self.ego = self._make_ego()
+        placed = self._make_placed()
+        traffic = self._make_traffic(np.random.default_rng(traffic_seed), placed)
+        events = timed_events(list(scenario.events), self.ego)
+        for v in [self.ego, *placed]:
+            key = "ego" if v is self.ego else v.name
+            if isinstance(v, ScenarioVehicle):
+                v.events = events.get(key, [])
+                for ev in v.events:
+                    ev.prepare(v)
+        self.road.vehicles = [self.ego, *(v for v in placed if isinstance(v, ScenarioVehicle)), *traffic]
+        self.road.objects = [v for v in placed if isinstance(v, StationaryVehicle)]
+        self._others = sorted([*placed, *traffic], key=lambda v: v.vid)
+
+    # ---------------------------------------------------------------- public
+    @property
+    def frame(self) -> int:
+        return self._clock.frame
+
+    def state(self) -> WorldState:
+        """The current frame's exact state (frame 0 = initial placement at t = 0)."""
+        return WorldState(frame=self._clock.frame, t=self._clock.t, ego=vehicle_state(self.ego),
+                          vehicles=tuple(vehicle_state(v) for v in self._others))
+
+    def step(self) -> WorldState:
+        """Advance exactly one frame (``road.act(); road.step(dt)``) and return the new state."""
+        self.road.act()
+        self.road.step(self.dt)
+        self._clock.frame += 1
+        return self.state()
+
+    # ---------------------------------------------------------------- building
+    def _vehicle_kwargs(self) -> dict:
+        t = self.scenario.traffic
+        return dict(road=self.road, clock=self._clock, idm=t.idm, mobil=t.mobil)
+
+    def _make_ego(self) -> ScenarioVehicle:
+        s = self.scenario
+        pos = np.array([EGO_START_X_M, lane_centre_y(s.ego.lane, s.road.lane_width_m)])
+        return ScenarioVehicle(position=pos, speed=s.ego.speed_mps, vid=0, name=None,
+                               behaviour=s.ego.behaviour, lane_changes=s.ego.lane_changes,
+                               **self._vehicle_kwargs())
+
+    def _make_placed(self) -> list[ScenarioVehicle | StationaryVehicle]:
+        s = self.scenario
+        cut_ins = {e.vehicle: e for e in s.events if isinstance(e, sc.CutInEvent)}
+        footprints = [Footprint(self.ego.position[0], self.ego.position[1], self.ego.LENGTH, self.ego.WIDTH)]
+        names = ["the ego"]
+        out: list[ScenarioVehicle | StationaryVehicle] = []
+        for i, p in enumerate(s.vehicles, start=1):
+            distance = p.distance_m
+            if p.name in cut_ins:
+                e = cut_ins[p.name]
+                distance = cut_in_distance(e.gap_m, e.at_s, p.speed_mps, s.ego.speed_mps)
+            x = placed_centre_x(EGO_START_X_M, s.camera.forward_offset_m, distance, p.length_m)
+            y = lane_centre_y(s.ego.lane + p.lane, s.road.lane_width_m)
+            where = f"scenario {s.name!r}: vehicles.{i - 1} ({p.name!r})"
+            if x - p.length_m / 2 < ROAD_START_MARGIN_M:
+                raise ScenarioError(f"{where}: starts {x - p.length_m / 2:.1f} m from the road start; "
+                                    f"it must start within {EGO_START_X_M - ROAD_START_MARGIN_M:.0f} m behind the ego")
+            if x + p.length_m / 2 > s.road.length_m:
+                raise ScenarioError(f"{where}: starts beyond the end of the {s.road.length_m:g} m road")
+            fp = Footprint(x, y, p.length_m, p.width_m)
+            for other, name in zip(footprints, names):
+                if fp.overlaps(other):
+                    raise ScenarioError(f"{where}: overlaps {name} at t = 0 (camera-to-rear distance {distance:.2f} m)")
+            footprints.append(fp)
+            names.append(repr(p.name))
+            pos = np.array([x, y])
+            if p.behaviour == "stationary":
+                out.append(StationaryVehicle(self.road, pos, vid=i, name=p.name,
+                                             length=p.length_m, width=p.width_m))
+            else:
+                out.append(ScenarioVehicle(position=pos, speed=p.speed_mps, vid=i, name=p.name,
+                                           behaviour=p.behaviour, lane_changes=p.lane_changes,
+                                           length=p.length_m, width=p.width_m, **self._vehicle_kwargs()))
+        self._placed_footprints = footprints
+        return out
+
+    def _make_traffic(self, rng: np.random.Generator, placed: list) -> list[ScenarioVehicle]:
+        s, t = self.scenario, self.scenario.traffic
+        try:
+            slots = traffic_slots(rng, t.vehicles_count, s.road.lanes, s.road.lane_width_m, t.density,
+                                  t.speed_range_mps, self._placed_footprints, EGO_START_X_M, s.road.length_m)
+        except ValueError as e:
+            raise ScenarioError(f"scenario {s.name!r}: traffic.vehicles_count: {e}") from None
+        first = len(s.vehicles) + 1
+        return [ScenarioVehicle(position=np.array([slot.x, lane_centre_y(slot.lane, s.road.lane_width_m)]),
+                                speed=slot.speed, vid=first + k, name=None, behaviour="idm",
+                                lane_changes=t.lane_changes, **self._vehicle_kwargs())
+                for k, slot in enumerate(slots)]
+
+
+def simulate(scenario: sc.Scenario, n_frames: int | None = None) -> Iterator[WorldState]:
+    """Frames ``0 .. n-1`` of the scenario (``n`` defaults to ``scenario.n_frames``); frame k has t = k / fps."""
+    n = scenario.n_frames if n_frames is None else int(n_frames)
+    if n <= 0:
+        return
+    sim = Simulation(scenario)
+    yield sim.state()
+    for _ in range(n - 1):
+        yield sim.step()
+
+
+def vehicle_state(v: ScenarioVehicle | StationaryVehicle) -> VehicleState:
+    """Exact state of one highway-env vehicle: centre, heading, speed, velocity, lane, size, crash flag."""
+    vx, vy = v.velocity
+    return VehicleState(
+        id=v.vid, x=float(v.position[0]), y=float(v.position[1]), heading=float(v.heading),
+        speed=float(v.speed), vx=float(vx), vy=float(vy), lane=int(v.lane_index[2]),
+        length=float(v.LENGTH), width=float(v.WIDTH), crashed=bool(v.crashed), name=v.name)
+
+
+# -------------------------------------------------------------------- checks
+def _check_events(s: sc.Scenario) -> None:
+    """Events the schema allows but the simulation cannot perform."""
+    behaviour = {v.name: v.behaviour for v in s.vehicles}
+    cut_ins: set[str] = set()
+    for i, e in enumerate(s.events):
+        if e.vehicle != "ego" and behaviour[e.vehicle] == "stationary":
+            raise ScenarioError(f"scenario {s.name!r}: events.{i}: vehicle {e.vehicle!r} is stationary "
+                                f"and cannot {e.type.replace('_', ' ')}")
+        if isinstance(e, sc.CutInEvent):
+            if e.vehicle in cut_ins:
+                raise ScenarioError(f"scenario {s.name!r}: events.{i}: vehicle {e.vehicle!r} has more than one cut_in")
+            cut_ins.add(e.vehicle)
+
+
+def _check_road_length(s: sc.Scenario) -> None:
+    """The ego must have road ahead for the whole scenario (lanes end at ``road.length_m``)."""
+    v_max = max([s.ego.speed_mps] + [e.target_speed_mps for e in s.events
+                                     if isinstance(e, sc.SpeedChangeEvent) and e.vehicle == "ego"])
+    need = EGO_START_X_M + v_max * s.duration_s + LOOKAHEAD_M
+    if s.road.length_m < need:
+        raise ScenarioError(
+            f"scenario {s.name!r}: road.length_m: {s.road.length_m:g} m is too short; the ego starts at "
+            f"{EGO_START_X_M:g} m and drives up to {v_max * s.duration_s:.0f} m in {s.duration_s:g} s, "
+            f"needing at least {need:.0f} m")

@@ -1,0 +1,58 @@
+"""Detectors: image (BGR uint8) -> list of :class:`monorarp.types.Detection`.
+
+Every detector has ``detect(image) -> list[Detection]`` (also callable directly).
+Registered: ``centernet`` (the project's own model, the default) and ``yolo``
+(Ultralytics YOLOv8/YOLO11 ONNX exports). :func:`load_detector` takes a
+registered name or a path to an ``.onnx`` file whose layout it recognises.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from monorarp.detection import centernet, yolo  # noqa: F401  (registration)
+from monorarp.detection.centernet import CenterNetDetector, is_centernet_layout
+from monorarp.detection.onnx_runtime import ModelError, open_session, outputs
+from monorarp.detection.yolo import YoloDetector, output_layout
+from monorarp.types import Detection
+
+DEFAULT_DETECTOR = "centernet"
+
+__all__ = ["Detector", "CenterNetDetector", "YoloDetector", "ModelError", "load_detector", "DEFAULT_DETECTOR"]
+
+
+class Detector(Protocol):
+    def detect(self, image: np.ndarray) -> list[Detection]: ...
+
+
+def load_detector(name_or_path: str | Path, **kw: Any) -> Detector:
+    """A detector from a registered name (``centernet``, ``yolo``, plug-ins) or an ``.onnx`` path.
+
+    For a path the output layout decides: outputs ``heatmap`` + ``ltrb`` -> CenterNet,
+    one ``(1, 4+80, N)`` output -> YOLO. ``kw`` go to the detector's constructor.
+    Raises :class:`~monorarp.errors.UserError` (one line) for an unknown name, a missing or
+    invalid file, or an unrecognised layout.
+    """
+    s = str(name_or_path)
+    if not s.lower().endswith(".onnx"):
+        from monorarp.registry import create
+
+        return create("detector", s, **kw)
+    path = Path(s)
+    session = open_session(path, 1)
+    if is_centernet_layout(session):
+        return CenterNetDetector(model_path=path, **kw)
+    outs = outputs(session)
+    if len(outs) == 1:
+        try:
+            output_layout(outs[0].shape, 80 if kw.get("class_map") is None else None)
+        except ValueError:
+            pass
+        else:
+            return YoloDetector(model_path=path, **kw)
+    found = ", ".join(f"{o.name} {list(o.shape)}" for o in outs)
+    raise ModelError(f"{path}: unrecognised detector layout: expected CenterNet outputs 'heatmap'+'ltrb' "
+                     f"or one YOLO output (1, 84, N); found {found}")

@@ -1,0 +1,65 @@
+"""Pooled robust slope of many tracks (pure maths).
+
+Each track ``k`` is a set of observations ``(t, y)`` of one stationary road
+feature; they all move with a common velocity ``dy/dt = slope`` but each has its
+own offset. Weighted least squares with a common slope and one intercept per
+track has the closed form ``slope = sum w (t - tb_k)(y - yb_k) / sum w (t - tb_k)^2``
+(``tb_k``, ``yb_k``: the track's weighted means). Outliers are removed by their
+normalised residual and the fit repeated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SlopeFit:
+    slope: float        # common dy/dt (m/s)
+    sigma: float        # 1-sigma standard error of the slope (m/s), from the weights
+    n_used: int         # observations kept
+    n_tracks: int       # tracks with >= 2 kept observations
+
+
+def pooled_slope(track: np.ndarray, t: np.ndarray, y: np.ndarray, sigma: np.ndarray,
+                 reject: float = 4.0, iterations: int = 2) -> SlopeFit | None:
+    """Common slope of ``y(t)`` across tracks (ids ``track``), ``sigma`` the 1-sigma error of each ``y``.
+
+    Observations with ``|residual| > reject * sigma`` are dropped (``iterations`` refits).
+    Returns None when no track keeps 2 observations or there is no time spread.
+    """
+    track = np.asarray(track)
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    w_all = 1.0 / np.square(np.asarray(sigma, dtype=float))
+    _, k = np.unique(track, return_inverse=True)
+    keep = np.ones(t.size, dtype=bool)
+    fit = None
+    for it in range(iterations + 1):
+        w = np.where(keep, w_all, 0.0)
+        counts = np.bincount(k, weights=keep.astype(float))
+        wsum = np.bincount(k, weights=w)
+        good = (counts >= 2) & (wsum > 0)
+        if good.sum() < 1:
+            return None
+        safe = np.where(good, wsum, 1.0)
+        tb = np.bincount(k, weights=w * t) / safe
+        yb = np.bincount(k, weights=w * y) / safe
+        dt = t - tb[k]
+        dy = y - yb[k]
+        use = keep & good[k]
+        sxx = float(np.sum(np.where(use, w * dt * dt, 0.0)))
+        if sxx <= 0:
+            return None
+        slope = float(np.sum(np.where(use, w * dt * dy, 0.0)) / sxx)
+        fit = SlopeFit(slope, float(1.0 / np.sqrt(sxx)), int(use.sum()), int(good.sum()))
+        if it == iterations:
+            break
+        res = np.abs(dy - slope * dt) * np.sqrt(w_all)
+        new_keep = keep & (res <= reject)
+        if new_keep.sum() == keep.sum():
+            break
+        keep = new_keep
+    return fit

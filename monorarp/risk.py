@@ -1,0 +1,71 @@
+"""Risk estimator (section IV-D, equation 5): ``risk = max over vehicles of 1 / TTC``.
+
+Each vehicle is a rectangle of assumed size (``other_width_m`` x
+``other_length_m``) whose rear face is at ``d_y`` and whose centre line is at
+``d_x``; the ego is a rectangle of ``ego_width_m`` x ``ego_length_m`` around its
+centre, which lies ``camera_forward_offset_m`` behind and
+``camera_lateral_offset_m`` left of the camera (the ego-frame origin). Both move
+at constant relative velocity; TTC is the first time the rectangles touch within
+``horizon_s`` (10 s), in closed form by :func:`monorarp.ttc.time_to_collision`.
+TTC is floored at ``min_ttc_s`` so the risk stays finite (rectangles already
+overlapping give ``1 / min_ttc_s``). Risk is 0 when no vehicle is on a
+collision course. Units: m, m/s, s; risk in 1/s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from monorarp.camera import CameraModel
+from monorarp.registry import register
+from monorarp.ttc import HORIZON_S, ego_extent, time_to_collision
+from monorarp.types import ObjectState, RiskEstimate
+
+
+def object_extents(d_x: np.ndarray, d_y: np.ndarray, width_m: float, length_m: float):
+    """Rectangles (x_lo, x_hi, y_lo, y_hi) of vehicles with rear face at ``d_y`` and centre line ``d_x``."""
+    d_x, d_y = np.asarray(d_x, dtype=float), np.asarray(d_y, dtype=float)
+    return d_x - width_m / 2, d_x + width_m / 2, d_y, d_y + length_m
+
+
+@register("risk", "ttc")
+class TTCRiskEstimator:
+    """``assess(states, t) -> RiskEstimate`` (equation 5, per-object TTC exposed).
+
+    ``camera``: if given, its mounting offsets are used for
+    ``camera_forward_offset_m`` / ``camera_lateral_offset_m``.
+    """
+
+    def __init__(self, other_width_m: float = 1.8, other_length_m: float = 4.5, ego_width_m: float = 1.8,
+                 ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
+                 camera_lateral_offset_m: float = 0.0, horizon_s: float = HORIZON_S,
+                 min_ttc_s: float = 0.1, camera: CameraModel | None = None) -> None:
+        if min_ttc_s <= 0 or horizon_s <= 0:
+            raise ValueError(f"min_ttc_s and horizon_s must be positive, got {min_ttc_s}, {horizon_s}")
+        if camera is not None:
+            camera_forward_offset_m, camera_lateral_offset_m = camera.forward_offset_m, camera.lateral_offset_m
+        self.other_width_m, self.other_length_m = float(other_width_m), float(other_length_m)
+        self.horizon_s, self.min_ttc_s = float(horizon_s), float(min_ttc_s)
+        self.ego_x, self.ego_y = ego_extent(ego_length_m, ego_width_m, camera_forward_offset_m,
+                                            camera_lateral_offset_m)
+
+    def reset(self) -> None:
+        """Stateless; present for the common component interface."""
+
+    def ttc(self, states: dict[int, ObjectState]) -> dict[int, float | None]:
+        """Per-object TTC (s), None when not on a collision course within the horizon."""
+        if not states:
+            return {}
+        ids = list(states)
+        arr = np.array([[s.d_x, s.d_y, s.v_x, s.v_y] for s in states.values()], dtype=float)
+        x_lo, x_hi, y_lo, y_hi = object_extents(arr[:, 0], arr[:, 1], self.other_width_m, self.other_length_m)
+        ttc = time_to_collision(x_lo, x_hi, y_lo, y_hi, arr[:, 2], arr[:, 3], self.ego_x, self.ego_y,
+                                self.horizon_s)
+        return {i: (None if np.isnan(v) else float(v)) for i, v in zip(ids, ttc)}
+
+    def assess(self, states: dict[int, ObjectState], t: float | None = None) -> RiskEstimate:
+        """Scene risk at frame time ``t`` (unused: constant-velocity TTC needs no clock)."""
+        ttc = self.ttc(states)
+        finite = [v for v in ttc.values() if v is not None]
+        risk = max((1.0 / max(v, self.min_ttc_s) for v in finite), default=0.0)
+        return RiskEstimate(risk=float(risk), ttc=ttc)

@@ -1,0 +1,10 @@
+"""Monte Carlo collision risk from IDM/MOBIL rollouts (paper section VI-B).
+
+``idm`` (driver-model maths), ``drivers`` (sampled parameters), ``scene``
+(estimated states -> road scene), ``rollout`` (batched simulation),
+``estimator`` (the registered ``("risk", "monte_carlo")`` component).
+"""
+
+from monorarp.risk_mc.estimator import MonteCarloRisk
+
+__all__ = ["MonteCarloRisk"]

@@ -1,0 +1,258 @@
+"""State estimator (section IV-C): relative distance and velocity of tracked vehicles.
+
+Ego frame (:mod:`monorarp.camera`): ``d_x`` lateral offset of the vehicle's
+centre (m, + right), ``d_y`` longitudinal distance to its rear face (m, + ahead),
+``v_x``/``v_y`` relative velocity (m/s). Boxes are ``(x1, y1, x2, y2)`` in
+continuous pixel coordinates, so the box's bottom edge is the row ``y2``.
+
+**Distance (equation 3).** ``d_y = h_c F / d_b`` with ``d_b`` the bottom edge's
+row minus the horizon row. That formula is exact for a level camera; for a
+pitched one the estimator intersects the pixel ray of the bottom edge with the
+ground plane through :meth:`CameraModel.ground_point_from_pixel` (rows map to
+constant ground distance when there is no roll), which reduces to equation 3 at
+pitch 0.
+
+**Contact-line bias.** The bottom of a tight box is where the vehicle meets
+the ground in the image: the rear tyres' contact line, ``contact_offset_m``
+(the rear overhang, ~0.95 m) *ahead* of the rear face that equation 3 assumes.
+The estimator subtracts it. Very close (under ~5 m for a 1.2 m camera) the
+rear bumper's lower edge, ``ground_clearance_m`` above the ground at the rear
+face, hides the tyres and becomes the lowest point instead; the ray through the
+bottom edge then meets the bumper's height at ``Y_g (1 - c / h_c)``. Because
+the lower of the two points in the image wins, the rear-face distance is
+exactly ``max(Y_g - contact_offset_m, Y_g (1 - ground_clearance_m / h_c))``
+where ``Y_g`` is the ground distance of the bottom-edge ray. Both set to 0
+reproduce the paper's equation 3.
+
+**Lateral distance (equation 4).** ``d_x = d_y d_e / F - W_r / 2`` with
+``d_e`` the column of the box's far edge (further from the centre column
+``c_x``) minus ``c_x``: the far edge is the rear outer corner, so ``W_r / 2``
+is subtracted towards the centre line (signed: + for a vehicle to the right,
+mirrored to the left). For a box straddling the centre column the camera lies
+laterally within the vehicle's width, so only its rear face is visible and the
+box centre *is* the rear face's centre: the estimator uses it with no width
+assumption, which avoids the jump between the two far edges. With pitch the
+far-edge ray is intersected with the rear-face plane ``y = d_y``; at pitch 0
+this is equation 4 exactly (any row gives the same column). With the camera
+pitched down the far edge's outermost point is the top of the rear corner
+(depth along the optical axis shrinks with height), so the ray is taken
+through the box's top row -- exact for a vehicle whose rear face holds the box
+top (a vehicle taller than the camera); otherwise the bottom row.
+
+**Relative velocity.** ``"difference"`` is the paper's: the change of distance
+over the change of frame time, 0 at initialisation. ``"kalman"`` (default) runs
+a Kalman filter per track and axis whose measurement noise follows from a
+box-edge noise ``pixel_std`` through the geometry (the equation-3 error grows
+as ``d_y^2 / (h_c F)``), starting at rest as the paper does but with a wide
+velocity prior. ``motion="ca"`` (default) is constant acceleration with white
+jerk noise, ``"cv"`` constant velocity with white acceleration noise. On
+synthetic 30 fps sequences at 640x360 with 0.5 px box noise (see
+``tests/test_state.py``), differencing gives ~10 m/s median velocity error,
+the filters 0.1--0.4 m/s; ``"cv"`` lags a braking lead car (2.3 m/s, 2.2 %
+distance error at 4 m/s^2 even with exact boxes) where ``"ca"`` does not
+(0.4 m/s, 0.5 %), at a small cost on steady traffic -- hence the default.
+Positions are output filtered. Coasting tracks (no detection this frame) only
+predict, and are dropped once they have coasted more than ``max_coast_used``
+consecutive frames, so stale tracks never feed the risk estimator.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from monorarp.camera import CameraModel
+from monorarp.registry import register
+from monorarp.types import ObjectState, Track
+
+
+# --------------------------------------------------------------------- the paper's formulas
+def eq3_distance(bottom_row, horizon_row: float, height_m: float, focal_px: float) -> np.ndarray:
+    """Equation 3: ``d_y = h_c F / (bottom_row - horizon_row)`` (m); NaN at or above the horizon."""
+    d_b = np.asarray(bottom_row, dtype=float) - horizon_row
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(d_b > 0, height_m * focal_px / d_b, np.nan)
+
+
+def eq4_lateral(d_y, d_e, focal_px: float, width_m: float) -> np.ndarray:
+    """Equation 4 with sign: ``d_x = d_y d_e / F - sign(d_e) W_r / 2`` (m, + right).
+
+    ``d_e``: signed column of the far edge minus the centre column (px).
+    """
+    d_e = np.asarray(d_e, dtype=float)
+    return np.asarray(d_y, dtype=float) * d_e / focal_px - np.sign(d_e) * width_m / 2
+
+
+# ------------------------------------------------------------------------- measurement
+def measure_boxes(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float = 1.8,
+                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17) -> np.ndarray:
+    """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` in the ego frame (m); NaN rows for boxes not below the horizon.
+
+    See the module docstring for the geometry.
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    x1, y1, x2, v_b = b[:, 0], b[:, 1], b[:, 2], b[:, 3]
+    ground = camera.ground_point_from_pixel(np.full_like(v_b, camera.cx), v_b)
+    y_g = ground[:, 1]                                              # ground distance of the bottom-edge ray
+    d_y = np.maximum(y_g - contact_offset_m, y_g * (1.0 - ground_clearance_m / camera.height_m))
+
+    right, left = x1 > camera.cx, x2 < camera.cx
+    u_e = np.where(right, x2, np.where(left, x1, (x1 + x2) / 2))    # far edge, or centre when straddling
+    half = np.where(right, vehicle_width_m / 2, np.where(left, -vehicle_width_m / 2, 0.0))
+    # Row of the far edge's extreme point: pitched down, the rear face's top corner; otherwise its bottom.
+    v_e = y1 if camera.pitch_rad > 0 else v_b
+    rays = camera.cam_to_ego(np.stack([(u_e - camera.cx) / camera.fx, (v_e - camera.cy) / camera.fy,
+                                       np.ones_like(u_e)], axis=-1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_edge = rays[:, 0] * d_y / rays[:, 1]                      # ray meets the rear-face plane y = d_y
+    return np.stack([x_edge - half, d_y], axis=1)
+
+
+# ---------------------------------------------------------------------------- filtering
+def motion_model(kind: str, dt: np.ndarray, noise_std: float) -> tuple[np.ndarray, np.ndarray]:
+    """Transition ``F`` and process noise ``Q``, each (M, n, n), for per-item intervals ``dt`` (s).
+
+    ``"cv"``: constant velocity, state (p, v), white acceleration of std ``noise_std`` (m/s^2).
+    ``"ca"``: constant acceleration, state (p, v, a), white jerk of std ``noise_std`` (m/s^3).
+    """
+    dt = np.asarray(dt, dtype=float)
+    one, zero = np.ones_like(dt), np.zeros_like(dt)
+    if kind == "cv":
+        F = np.stack([np.stack([one, dt], -1), np.stack([zero, one], -1)], -2)
+        G = np.stack([dt * dt / 2, dt], -1)
+    else:
+        F = np.stack([np.stack([one, dt, dt * dt / 2], -1), np.stack([zero, one, dt], -1),
+                      np.stack([zero, zero, one], -1)], -2)
+        G = np.stack([dt ** 3 / 6, dt * dt / 2, dt], -1)
+    return F, G[..., :, None] * G[..., None, :] * noise_std ** 2
+
+
+def kf_predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Batched prediction: x (..., n), P (..., n, n)."""
+    return np.einsum("...ij,...j->...i", F, x), F @ P @ np.swapaxes(F, -1, -2) + Q
+
+
+def kf_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Batched update with a position measurement ``z`` (...) of variance ``r`` (...); H = [1, 0, ...]."""
+    s = P[..., 0, 0] + r
+    k = P[..., :, 0] / s[..., None]
+    x = x + k * (z - x[..., 0])[..., None]
+    P = P - k[..., :, None] * P[..., None, 0, :]
+    return x, P
+
+
+@register("state", "geometric")
+class StateEstimator:
+    """Tracks -> ``{track id: ObjectState}`` from box geometry and frame timestamps.
+
+    Parameters:
+        camera: the calibrated :class:`CameraModel` (or its dict form).
+        velocity: ``"kalman"`` (default) or ``"difference"`` (the paper).
+        motion: Kalman motion model, ``"ca"`` (constant acceleration, default) or ``"cv"``.
+        process_std: Kalman process noise: jerk std (m/s^3) for ``"ca"``, acceleration std (m/s^2) for ``"cv"``.
+        pixel_std: Kalman measurement noise, box-edge std (px).
+        vehicle_width_m: ``W_r`` of equation 4.
+        contact_offset_m, ground_clearance_m: the contact-line correction (0, 0 = the paper).
+        max_coast_used: consecutive coasting frames after which a track is no longer output.
+        forget_s: a track id unseen for this long (s) loses its history.
+    """
+
+    def __init__(self, camera: CameraModel | dict, velocity: str = "kalman", motion: str = "ca",
+                 process_std: float = 3.0, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,
+                 contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17, max_coast_used: int = 2,
+                 init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0) -> None:
+        if velocity not in ("kalman", "difference"):
+            raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
+        if motion not in ("cv", "ca"):
+            raise ValueError(f"motion must be 'cv' or 'ca', got {motion!r}")
+        self.camera = camera if isinstance(camera, CameraModel) else CameraModel.from_dict(camera)
+        self.velocity, self.motion = velocity, motion
+        self.process_std, self.pixel_std = float(process_std), float(pixel_std)
+        self.vehicle_width_m = float(vehicle_width_m)
+        self.contact_offset_m = float(contact_offset_m)
+        self.ground_clearance_m = float(ground_clearance_m)
+        self.max_coast_used = int(max_coast_used)
+        n = 2 if motion == "cv" else 3
+        self._prior_var = np.array([0.0, init_vel_std ** 2, init_acc_std ** 2][:n])
+        self.forget_s = float(forget_s)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every track's history."""
+        # per track id: (x, P) of the (x, y) axes [kalman] or the last (d_x, d_y) [difference],
+        # the frame time of the last update, and the consecutive coasting count.
+        self._state: dict[int, tuple[np.ndarray, np.ndarray] | np.ndarray] = {}
+        self._t: dict[int, float] = {}
+        self._coast: dict[int, int] = {}
+
+    def measure(self, boxes: np.ndarray) -> np.ndarray:
+        """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` (m) with this estimator's geometry parameters."""
+        return measure_boxes(self.camera, boxes, self.vehicle_width_m, self.contact_offset_m,
+                             self.ground_clearance_m)
+
+    def measurement_var(self, z: np.ndarray) -> np.ndarray:
+        """(M, 2) variances (m^2) of measured (d_x, d_y): ``pixel_std`` through equations 3 and 4.
+
+        ``d d_y / d v = d_y^2 / (h_c F)`` (so the error grows as d^2); the lateral error
+        adds the far edge's column error and the share of the distance error.
+        """
+        d_x, d_y = z[:, 0], np.maximum(z[:, 1], 0.1)
+        s_y = d_y ** 2 / (self.camera.height_m * self.camera.fy) * self.pixel_std + 0.01
+        s_x = d_y / self.camera.fx * self.pixel_std + np.abs(d_x) / d_y * s_y + 0.01
+        return np.stack([s_x, s_y], axis=1) ** 2
+
+    def update(self, tracks: Sequence[Track], t: float) -> dict[int, ObjectState]:
+        """Estimate every usable track's relative state at frame time ``t`` (s)."""
+        t = float(t)
+        for tid in [k for k, tk in self._t.items() if t - tk > self.forget_s]:
+            self._state.pop(tid), self._t.pop(tid)
+        self._coast = {tr.id: self._coast.get(tr.id, 0) + 1 if tr.coasting else 0 for tr in tracks}
+        usable = [tr for tr in tracks if self._coast[tr.id] <= self.max_coast_used]
+        if not usable:
+            return {}
+        ids = [tr.id for tr in usable]
+        z = self.measure(np.array([tr.box for tr in usable], dtype=float))
+        coasting = np.array([tr.coasting for tr in usable])
+        known = np.array([i in self._state for i in ids])
+        ok = np.all(np.isfinite(z), axis=1) | (coasting & known)
+        if self.velocity == "kalman":
+            out = self._kalman(ids, z, coasting, known, ok, t)
+        else:
+            out = self._difference(ids, z, known, ok, t)
+        return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}
+
+    def _difference(self, ids, z, known, ok, t) -> np.ndarray:
+        """The paper: v = (d_k - d_{k-1}) / (t_k - t_{k-1}); 0 at initialisation."""
+        prev = np.array([self._state[i] if k else (np.nan, np.nan) for i, k in zip(ids, known)]).reshape(-1, 2)
+        dt = np.array([t - self._t[i] if k else 0.0 for i, k in zip(ids, known)])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = np.where((dt > 0)[:, None] & known[:, None], (z - prev) / dt[:, None], 0.0)
+        for i, zi, good in zip(ids, z, ok):
+            if good:
+                self._state[i], self._t[i] = zi, t
+        return np.concatenate([z, v], axis=1)
+
+    def _kalman(self, ids, z, coasting, known, ok, t) -> np.ndarray:
+        """Kalman filter per track and axis, vectorised over both (arrays of shape (M, 2, n))."""
+        m, n = len(ids), len(self._prior_var)
+        zf = np.nan_to_num(z, nan=1.0)
+        r = self.measurement_var(zf)
+        x, P = np.zeros((m, 2, n)), np.zeros((m, 2, n, n))
+        for j, (i, k) in enumerate(zip(ids, known)):
+            if k:
+                x[j], P[j] = self._state[i]
+            else:  # first sighting: at the measurement, at rest (the paper's v = 0), wide prior
+                x[j, :, 0] = zf[j]
+                P[j] = np.diag(self._prior_var)[None] + 0.0
+                P[j, :, 0, 0] = r[j]
+        dt = np.array([t - self._t[i] if k else 0.0 for i, k in zip(ids, known)])
+        F, Q = motion_model(self.motion, np.repeat(dt[:, None], 2, axis=1), self.process_std)
+        x, P = kf_predict(x, P, F, Q)
+        upd = (known & ~coasting & ok)[:, None]
+        xu, Pu = kf_update(x, P, zf, r)
+        x, P = np.where(upd[..., None], xu, x), np.where(upd[..., None, None], Pu, P)
+        for j, i in enumerate(ids):
+            if ok[j]:
+                self._state[i], self._t[i] = (x[j], P[j]), t
+        return np.concatenate([x[:, :, 0], x[:, :, 1]], axis=1)

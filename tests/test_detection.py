@@ -1,0 +1,166 @@
+"""Detectors: YOLO export decoding, CenterNet decoding, bad models, the committed model on a rendered frame."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+onnx = pytest.importorskip("onnx")
+from onnx import TensorProto, helper  # noqa: E402
+
+from monorarp.detection import CenterNetDetector, YoloDetector, load_detector  # noqa: E402
+from monorarp.detection.centernet import DEFAULT_MODEL  # noqa: E402
+from monorarp.errors import UserError  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def constant_model(path: Path, input_shape, outputs: dict[str, np.ndarray], input_name: str = "images") -> Path:
+    """An ONNX model whose outputs are fixed tensors (plus 0 * mean(input), so the input is used)."""
+    nodes = [helper.make_node("ReduceMean", [input_name], ["m"], keepdims=0),
+             helper.make_node("Mul", ["m", "zero"], ["z"])]
+    inits = [helper.make_tensor("zero", TensorProto.FLOAT, [], [0.0])]
+    outs = []
+    for name, arr in outputs.items():
+        inits.append(helper.make_tensor(f"{name}_c", TensorProto.FLOAT, arr.shape, arr.astype(np.float32).ravel()))
+        nodes.append(helper.make_node("Add", [f"{name}_c", "z"], [name]))
+        outs.append(helper.make_tensor_value_info(name, TensorProto.FLOAT, list(arr.shape)))
+    graph = helper.make_graph(nodes, "fixed", [helper.make_tensor_value_info(input_name, TensorProto.FLOAT, list(input_shape))],
+                              outs, initializer=inits)
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    onnx.checker.check_model(model)
+    onnx.save(model, str(path))
+    return path
+
+
+# ------------------------------------------------------------------- YOLO
+def yolo_raw(n_anchors: int = 50) -> np.ndarray:
+    """(1, 84, N) with hand-placed candidates in 640x640 letterbox input pixels (edge convention)."""
+    p = np.zeros((84, n_anchors), np.float32)
+    p[:4, :] = [[10], [10], [4], [4]]           # filler anchors: all class scores 0
+    cands = [  # cx, cy, w, h, class, score
+        (320, 320, 100, 60, 2, 0.90),   # car                      -> kept
+        (322, 321, 100, 60, 2, 0.80),   # same car, lower score    -> suppressed by NMS
+        (320, 320, 100, 60, 7, 0.70),   # truck on it: other class -> kept (class-wise NMS)
+        (100, 200, 40, 40, 5, 0.60),    # bus                      -> kept
+        (400, 400, 50, 50, 0, 0.95),    # person                   -> not a vehicle
+        (200, 400, 30, 30, 2, 0.10),    # car below threshold      -> dropped
+        (600, 150, 100, 40, 2, 0.50),   # car reaching into the pad and past the right edge -> clipped
+    ]
+    for k, (cx, cy, w, h, c, s) in enumerate(cands):
+        p[:4, k] = cx, cy, w, h
+        p[4 + c, k] = s
+        if c == 2:
+            p[4 + 7, k] = s / 3             # lower truck score on the same anchor: argmax must pick car
+    return p[None]
+
+
+# 1280x720 -> 640x360 letterboxed in 640x640: scale 0.5, 140 px pad on top.
+# source (continuous, pixel centres at integers) = (net_edge - pad) / 0.5 - 0.5
+YOLO_EXPECTED = [
+    ((270 / 0.5 - 0.5, (290 - 140) / 0.5 - 0.5, 370 / 0.5 - 0.5, (350 - 140) / 0.5 - 0.5), 0.90, "car"),
+    ((539.5, 299.5, 739.5, 419.5), 0.70, "truck"),
+    ((159.5, 79.5, 239.5, 159.5), 0.60, "bus"),
+    ((1099.5, -0.5, 1279.5, -0.5 + (170 - 140) / 0.5), 0.50, "car"),   # y1 -20.5 and x2 1299.5 clipped
+]
+
+
+@pytest.mark.parametrize("transposed", [False, True])
+def test_yolo_decoding_nms_and_letterbox(tmp_path, transposed):
+    raw = yolo_raw()
+    if transposed:
+        raw = raw.transpose(0, 2, 1).copy()
+    path = constant_model(tmp_path / "yolo.onnx", (1, 3, 640, 640), {"output0": raw})
+    det = YoloDetector(path, conf_threshold=0.25, iou_threshold=0.45)
+    out = det.detect(np.zeros((720, 1280, 3), np.uint8))
+    assert [d.label for d in out] == [e[2] for e in YOLO_EXPECTED]
+    for d, (box, score, _) in zip(out, YOLO_EXPECTED):
+        np.testing.assert_allclose(d.box, box, atol=1e-4)
+        assert d.score == pytest.approx(score, abs=1e-6)
+    assert type(load_detector(str(path))) is YoloDetector
+
+
+def test_yolo_wrong_layout_is_user_error(tmp_path):
+    nms_export = constant_model(tmp_path / "nms.onnx", (1, 3, 640, 640), {"output0": np.zeros((1, 300, 6))})
+    with pytest.raises(UserError, match=r"nms\.onnx.*\(1, 84, N\)"):
+        YoloDetector(nms_export)
+    with pytest.raises(UserError, match="unrecognised detector layout"):
+        load_detector(str(nms_export))
+    seg = constant_model(tmp_path / "two.onnx", (1, 3, 640, 640),
+                         {"output0": np.zeros((1, 84, 10)), "output1": np.zeros((1, 32, 160, 160))})
+    with pytest.raises(UserError, match="one YOLO output"):
+        YoloDetector(seg)
+    bad_input = constant_model(tmp_path / "gray.onnx", (1, 1, 640, 640), {"output0": np.zeros((1, 84, 10))})
+    with pytest.raises(UserError, match=r"gray\.onnx.*\(1,3,H,W\)"):
+        YoloDetector(bad_input)
+
+
+def test_missing_and_unreadable_models_are_user_errors(tmp_path):
+    with pytest.raises(UserError, match=r"nope\.onnx: model file not found"):
+        load_detector(str(tmp_path / "nope.onnx"))
+    junk = tmp_path / "junk.onnx"
+    junk.write_bytes(b"this is not a protobuf \x00\x01\x02" * 10)
+    with pytest.raises(UserError, match=r"junk\.onnx: not a valid ONNX model"):
+        YoloDetector(junk)
+    with pytest.raises(UserError, match=r"junk\.onnx"):
+        CenterNetDetector(junk)
+    with pytest.raises(UserError):
+        load_detector("no-such-detector-name")
+
+
+# -------------------------------------------------------------- CenterNet
+def test_centernet_decoding_and_letterbox(tmp_path):
+    """Hand-placed heatmap peak + edge distances -> box in source pixels."""
+    h, w, s = 48, 80, 4
+    hm = np.zeros((1, 1, h, w), np.float32)
+    lt = np.zeros((1, 4, h, w), np.float32)
+    box = np.array([71.5, 33.5, 93.5, 61.5])          # in the 320x192 net input
+    for di in (-1, 0, 1):                            # the 3x3 neighbours predict the same box
+        for dj in (-1, 0, 1):
+            i, j = 10 + di, 20 + dj
+            cx, cy = s * j + 1.5, s * i + 1.5
+            lt[0, :, i, j] = cx - box[0], cy - box[1], box[2] - cx, box[3] - cy
+            hm[0, 0, i, j] = 0.9 if (di, dj) == (0, 0) else 0.5
+    hm[0, 0, 30, 60] = 0.2                           # below the threshold
+    path = constant_model(tmp_path / "cn.onnx", (1, 3, 192, 320), {"heatmap": hm, "ltrb": lt}, "image")
+    det = load_detector(str(path), score_threshold=0.3)
+    assert type(det) is CenterNetDetector
+    out = det.detect(np.zeros((360, 640, 3), np.uint8))   # 640x360 -> 320x180, 6 px bands top and bottom
+    assert len(out) == 1
+    # x = (x' + 0.5) / 0.5 - 0.5 ; y = (y' - 6 + 0.5) / 0.5 - 0.5
+    np.testing.assert_allclose(out[0].box, (143.5, 55.5, 187.5, 111.5), atol=1e-4)
+    assert out[0].score == pytest.approx(0.9)
+
+
+def test_centernet_wrong_output_shape_is_user_error(tmp_path):
+    path = constant_model(tmp_path / "cn_bad.onnx", (1, 3, 192, 320),
+                          {"heatmap": np.zeros((1, 1, 24, 40)), "ltrb": np.zeros((1, 4, 24, 40))}, "image")
+    with pytest.raises(UserError, match=r"cn_bad\.onnx: expected outputs heatmap \[1, 1, 48, 80\]"):
+        CenterNetDetector(path)
+
+
+# -------------------------------------------------------------------- AP
+def test_average_precision_hand_example():
+    sys.path.insert(0, str(ROOT))
+    from training.ap import ap_at
+
+    gts = [np.array([[0, 0, 10, 10], [20, 20, 30, 30]], float), np.array([[0, 0, 10, 10]], float)]
+    dets = [np.array([[0, 0, 10, 10], [50, 50, 60, 60], [20, 20, 30, 31]], float),
+            np.array([[1, 0, 10, 10], [0, 0, 10, 10]], float)]
+    scores = [np.array([0.9, 0.8, 0.3]), np.array([0.7, 0.6])]
+    # sorted: 0.9 TP, 0.8 FP, 0.7 TP (IoU 0.9), 0.6 FP (duplicate), 0.3 TP (IoU 100/110)
+    # precision 1, 1/2, 2/3, 2/4, 3/5 at recall 1/3, 1/3, 2/3, 2/3, 1
+    # interpolated: recall 0->1/3 at 1, 1/3->2/3 at 2/3, 2/3->1 at 3/5
+    expected = (1 / 3) * 1 + (1 / 3) * (2 / 3) + (1 / 3) * (3 / 5)
+    assert ap_at(dets, scores, gts, 0.5) == pytest.approx(expected)
+    # at IoU 0.95 only the exact boxes match: 0.9 TP, 0.8 FP, 0.7 FP (IoU 0.9), 0.6 TP, 0.3 FP
+    expected95 = (1 / 3) * 1 + (1 / 3) * (2 / 4)
+    assert ap_at(dets, scores, gts, 0.95) == pytest.approx(expected95)
+    # ignoring the box the FP at 0.8 hits removes it: precision 1, 2/3 -> 1, 1, ...
+    ign = [np.array([[50, 50, 60, 60]], float), np.zeros((0, 4))]
+    expected_ign = (1 / 3) * 1 + (1 / 3) * 1 + (1 / 3) * (3 / 4)
+    assert ap_at(dets, scores, gts, 0.5, ign) == pytest.approx(expected_ign)

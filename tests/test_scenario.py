@@ -1,0 +1,146 @@
+"""Bad scenario files: ``monorarp render`` exits 2 with one line naming file and field, writes nothing."""
+
+from __future__ import annotations
+
+import textwrap
+
+import pytest
+
+from harness.scenario import ScenarioError, load_scenario
+from monorarp.cli import main
+
+# (id, YAML text, substrings the one-line message must contain)
+BAD = [
+    ("malformed_yaml", "name: x\nroad: [1, 2\nfps: 3\n", ["invalid YAML", "line 3"]),
+    ("unknown_key", "name: x\nroad:\n  lanez: 3\n", ["road.lanez", "Extra inputs"]),
+    ("out_of_range", "name: x\nfps: 500\n", ["fps", "less than or equal to 120"]),
+    ("wrong_type", "name: x\nroad:\n  lanes: three\n", ["road.lanes", "integer"]),
+    ("ego_lane_off_road", "name: x\nroad:\n  lanes: 3\nego:\n  lane: 3\n", ["ego.lane", "3-lane road"]),
+    ("vehicle_lane_off_road", "name: x\nvehicles:\n  - {name: lead, distance_m: 20, lane: 3}\n",
+     ["vehicles.0.lane", "off the road"]),
+    ("event_unknown_vehicle",
+     "name: x\nvehicles:\n  - {name: lead, distance_m: 20}\n"
+     "events:\n  - {type: brake, vehicle: ghost, at_s: 1, decel_mps2: 5}\n",
+     ["events.0.vehicle", "ghost"]),
+    ("event_unknown_type", "name: x\nevents:\n  - {type: teleport, vehicle: ego, at_s: 1}\n",
+     ["events.0", "teleport"]),
+    # 640x360, hfov 70 deg: fy = 320/tan(35 deg) = 457 px, horizon = 179.5 - 457*tan(30 deg) = -84 px
+    ("camera_horizon_outside_image", "name: x\ncamera:\n  pitch_deg: 30\n", ["camera", "horizon"]),
+    ("missing_name", "seed: 3\n", ["name", "required"]),
+    ("not_a_mapping", "- a\n- b\n", ["mapping"]),
+    ("empty_file", "", ["mapping"]),
+]
+
+
+def _run(capsys, args):
+    rc = main(args)
+    err = capsys.readouterr().err
+    return rc, err
+
+
+@pytest.mark.parametrize("case_id,text,needles", BAD, ids=[b[0] for b in BAD])
+def test_bad_scenario_one_line_exit_2_nothing_written(tmp_path, capsys, case_id, text, needles):
+    path = tmp_path / f"{case_id}.yaml"
+    path.write_text(text)
+    out = tmp_path / "out"
+    rc, err = _run(capsys, ["render", str(path), "--out", str(out)])
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert str(path) in lines[0]
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    assert "Traceback" not in err
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
+    with pytest.raises(ScenarioError):
+        load_scenario(path)
+
+
+# Valid for the schema, rejected by the simulation before anything is rendered or written.
+SIM_BAD = [
+    ("stationary_vehicle_brakes",
+     "name: x\nvehicles: [{name: p, distance_m: 20, behaviour: stationary}]\n"
+     "events: [{type: brake, vehicle: p, at_s: 1, decel_mps2: 3}]\n",
+     ["events.0", "stationary"]),
+    ("road_too_short", "name: x\nroad: {lanes: 1, length_m: 200}\nego: {lane: 0}\n", ["road.length_m"]),
+]
+
+
+@pytest.mark.parametrize("case_id,text,needles", SIM_BAD, ids=[b[0] for b in SIM_BAD])
+def test_simulation_rejects_scenario_cleanly(tmp_path, capsys, case_id, text, needles):
+    path = tmp_path / f"{case_id}.yaml"
+    path.write_text(text)
+    load_scenario(path)  # the schema accepts it
+    out = tmp_path / "deep" / "out"
+    rc, err = _run(capsys, ["render", str(path), "--out", str(out)])
+    assert rc == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and str(path) in lines[0], err
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # not even the parent "deep"
+
+
+def test_missing_file(tmp_path, capsys):
+    path = tmp_path / "nope.yaml"
+    out = tmp_path / "out"
+    rc, err = _run(capsys, ["render", str(path), "--out", str(out)])
+    assert rc == 2
+    assert len(err.strip().splitlines()) == 1
+    assert str(path) in err and "No such file" in err
+    assert not out.exists()
+
+
+def test_bad_scenario_leaves_previous_run_untouched(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "ground_truth.jsonl").write_text("old\n")
+    path = tmp_path / "s.yaml"
+    path.write_text("name: x\nfps: 0\n")
+    rc, err = _run(capsys, ["render", str(path), "--out", str(out)])
+    assert rc == 2 and "fps" in err
+    assert sorted(p.name for p in out.iterdir()) == ["ground_truth.jsonl"]
+    assert (out / "ground_truth.jsonl").read_text() == "old\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "s.yaml"]
+
+
+@pytest.mark.parametrize("frames", ["0", "-3"])
+def test_frames_must_be_positive(tmp_path, capsys, frames):
+    path = tmp_path / "s.yaml"
+    path.write_text("name: x\n")
+    out = tmp_path / "out"
+    rc, err = _run(capsys, ["render", str(path), "--out", str(out), "--frames", frames])
+    assert rc == 2
+    assert "--frames" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_valid_minimal_scenario_defaults():
+    """The defaults documented in the README hold (a guard against silent schema drift)."""
+    from harness.scenario import parse_scenario
+
+    s = parse_scenario({"name": "x"})
+    assert (s.seed, s.duration_s, s.fps, s.n_frames) == (0, 10.0, 15.0, 150)
+    assert (s.road.lanes, s.road.lane_width_m, s.ego.lane, s.ego.speed_mps) == (3, 4.0, 1, 25.0)
+    assert (s.road.markings.stripe_length_m, s.road.markings.period_m) == (3.05, 12.19)
+    assert (s.camera.width, s.camera.height, s.camera.hfov_deg, s.camera.height_m) == (640, 360, 70.0, 1.3)
+    # the camera the scenario describes, against the pinhole formula f = (w/2)/tan(hfov/2)
+    import math
+
+    cam = s.camera.model()
+    assert cam.fx == pytest.approx(320 / math.tan(math.radians(35)))
+    assert cam.horizon_row == pytest.approx(179.5 - cam.fy * math.tan(math.radians(2.0)))
+
+
+def test_yaml_anchor_and_comment_friendly(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text(textwrap.dedent("""\
+        # comment
+        name: ok
+        vehicles:
+          - &car {name: a, distance_m: 10, behaviour: stationary}
+          - {<<: *car, name: b, lane: -1}
+        """))
+    s = load_scenario(path)
+    assert [v.name for v in s.vehicles] == ["a", "b"] and s.vehicles[1].lane == -1

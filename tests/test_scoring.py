@@ -1,0 +1,205 @@
+"""Scoring maths on hand-made cases, checked against hand computation and brute force."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+
+import numpy as np
+import pytest
+
+from harness.scoring import algo
+from harness.scoring.evaluate import EvalConfig, evaluate, jsonable, write_metrics
+from harness.scoring.match import iou_matrix, match_boxes, split_ignored
+from harness.scoring.mot import MotScorer
+from harness.scoring.records import read_csv, write_csv
+from monorarp.types import Detection, FrameResult, ObjectState, RiskEstimate, Track
+
+
+# ------------------------------------------------------------------ matching
+def _raster_iou(a, b, size=40):
+    """IoU by counting pixels of integer-aligned boxes (independent reference)."""
+    ma = np.zeros((size, size), bool)
+    mb = np.zeros((size, size), bool)
+    ma[a[1]:a[3], a[0]:a[2]] = True
+    mb[b[1]:b[3], b[0]:b[2]] = True
+    union = (ma | mb).sum()
+    return (ma & mb).sum() / union if union else 0.0
+
+
+def test_iou_matrix_matches_pixel_counting():
+    rng = np.random.default_rng(1)
+    boxes = []
+    for _ in range(12):
+        x = np.sort(rng.choice(40, 2, replace=False))
+        y = np.sort(rng.choice(40, 2, replace=False))
+        boxes.append((int(x[0]), int(y[0]), int(x[1]), int(y[1])))
+    got = iou_matrix(boxes[:5], boxes[5:])
+    ref = np.array([[_raster_iou(p, q) for q in boxes[5:]] for p in boxes[:5]])
+    np.testing.assert_allclose(got, ref, atol=1e-12)
+    assert iou_matrix([(0, 0, 10, 10)], [(5, 0, 15, 10)])[0, 0] == pytest.approx(1 / 3)
+    assert iou_matrix([], [(0, 0, 1, 1)]).shape == (0, 1)
+    assert iou_matrix([(0, 0, 0, 5)], [(0, 0, 0, 5)])[0, 0] == 0.0   # degenerate box
+
+
+def test_hungarian_beats_greedy_and_respects_threshold():
+    gt = [(0, 0, 10, 10), (2, 0, 12, 10)]
+    est = [(1, 0, 11, 10), (-1, 0, 9, 10)]
+    iou = iou_matrix(gt, est)
+    # Greedy would give est 0 to gt 0 (highest IoU) and est 1 to gt 1 (IoU < 0.5: unmatched).
+    m = match_boxes(gt, est, 0.5)
+    best = max((sum(iou[g, e] for g, e in zip(range(2), p) if iou[g, e] >= 0.5), p)
+               for p in itertools.permutations(range(2)))
+    assert {(g, e) for g, e, _ in m} == {(g, e) for g, e in zip(range(2), best[1]) if iou[g, e] >= 0.5}
+    assert len(m) == 2
+    assert match_boxes(gt, [(50, 50, 60, 60)]) == []
+    # IoU exactly at the threshold matches; just below does not.
+    assert len(match_boxes([(0, 0, 10, 10)], [(0, 0, 10, 5)], 0.5)) == 1
+    assert len(match_boxes([(0, 0, 10, 10)], [(0, 0, 10, 4.9)], 0.5)) == 0
+
+
+def test_split_ignored_drops_estimates_on_ignored_objects():
+    gt = [(0, 0, 10, 10), (20, 0, 30, 10)]
+    est = [(0, 0, 10, 10), (20, 0, 30, 10), (50, 0, 60, 10)]
+    kept, ignored = split_ignored(gt, [True, False], est)
+    assert [(g, e) for g, e, _ in kept] == [(0, 0)]
+    assert ignored.tolist() == [False, True, False]
+
+
+# --------------------------------------------------------------------- maths
+def test_error_stats_by_hand():
+    s = algo.error_stats([11.0, 18.0, 33.0, np.nan], [10.0, 20.0, 30.0, 40.0])
+    assert s["count"] == 3
+    assert s["abs_err_median_m"] == pytest.approx(2.0)
+    assert s["abs_err_mean_m"] == pytest.approx(2.0)
+    assert s["abs_err_p90_m"] == pytest.approx(2.8)       # linear interpolation between 2 and 3
+    assert s["bias_m"] == pytest.approx(2 / 3)
+    assert s["rel_err_median"] == pytest.approx(0.1)
+    assert s["rel_err_p90"] == pytest.approx(0.1)
+    empty = algo.error_stats([], [])
+    assert empty["count"] == 0 and math.isnan(empty["rel_err_median"])
+
+
+def test_range_bins():
+    d = [0.0, 9.99, 10.0, 19.9, 20.0, 39.0, 40.0, 79.9, 80.0, -1.0]
+    assert algo.bin_labels(d).tolist() == ["0-10", "0-10", "10-20", "10-20", "20-40", "20-40", "40-80", "40-80",
+                                           None, None]
+    est = np.array(d) * 1.02
+    b = algo.binned_error_stats(est, d, d)
+    assert [b[k]["count"] for k in algo.RANGE_BINS] == [2, 2, 2, 2]
+    assert b["20-40"]["rel_err_median"] == pytest.approx(0.02)
+
+
+def test_warning_classification_by_hand():
+    est = [1.0, 1.5, None, 3.0, 1.9, np.nan]
+    gt = [1.2, 2.5, 1.0, None, 1.99, 1.0]
+    # warnings est: T T F F T F ; gt: T F T F T T  -> tp 2, fp 1, fn 2
+    w = algo.warning_classification(est, gt, 2.0)
+    assert (w["tp"], w["fp"], w["fn"]) == (2, 1, 2)
+    assert w["precision"] == pytest.approx(2 / 3)
+    assert w["recall"] == pytest.approx(2 / 4)
+    assert algo.warnings_from_ttc([2.0])[0] == False  # noqa: E712 - strictly below the threshold
+    none = algo.warning_classification([None, 5.0], [None, 3.0])
+    assert math.isnan(none["precision"]) and math.isnan(none["recall"])
+    assert jsonable(none)["precision"] is None
+
+
+def test_precision_recall_counts():
+    pr = algo.precision_recall(3, 4, 6)
+    assert pr["precision"] == 0.75 and pr["recall"] == 0.5 and pr["fp"] == 1 and pr["fn"] == 3
+    assert pr["f1"] == pytest.approx(2 * 0.75 * 0.5 / 1.25)
+    with pytest.raises(ValueError):
+        algo.precision_recall(5, 4, 6)
+
+
+# ----------------------------------------------------------------------- MOT
+def test_mot_one_id_switch_by_hand():
+    s = MotScorer()
+    b = [(0, 0, 10, 10)]
+    s.update([1], b, [True], [7], b)
+    s.update([1], b, [True], [8], b)     # identity switch 7 -> 8
+    s.update([1], b, [True], [8], b)
+    s.update([1], b, [True], [], [])     # miss
+    m = s.compute()
+    # MOTA = 1 - (FN + FP + IDSW) / GT = 1 - (1 + 0 + 1) / 4
+    assert m["mota"] == pytest.approx(0.5)
+    assert m["num_switches"] == 1
+    # IDF1: best one-to-one id map GT 1 <-> track 8 gives IDTP 2; IDFP 1, IDFN 2 -> 2*2 / (2*2 + 1 + 2)
+    assert m["idf1"] == pytest.approx(4 / 7)
+
+
+def test_mot_ignored_objects_are_neither_misses_nor_false_positives():
+    s = MotScorer()
+    gt = [(0, 0, 10, 10), (20, 0, 30, 10)]
+    s.update([1, 2], gt, [True, False], [5, 6], gt)           # track 6 sits on the ignored object
+    s.update([1, 2], gt, [True, False], [5], gt[:1])          # ignored object missed
+    s.update([1, 2], gt, [True, False], [5, 9], [gt[0], (50, 0, 60, 10)])  # a real false positive
+    m = s.compute()
+    assert m["num_objects"] == 3 and m["num_misses"] == 0 and m["num_false_positives"] == 1
+    assert m["mota"] == pytest.approx(1 - 1 / 3)
+
+
+# ---------------------------------------------------------------- evaluation
+def _truth(frame, objects):
+    return {"frame": frame, "t": frame / 10, "ego": {"speed": 20.0}, "objects": objects}
+
+
+def _obj(i, box, d_long, vis=1.0, ttc=None, v_long=-1.0):
+    return {"id": i, "box": list(box), "visibility": vis, "d_long": d_long, "d_lat": 0.5, "v_long": v_long,
+            "v_lat": 0.0, "ttc": ttc}
+
+
+def _result(frame, tracks, states, ttc, dets):
+    return FrameResult(index=frame, t=frame / 10, detections=[Detection(b) for b in dets], tracks=tracks,
+                       states=states, risk=RiskEstimate(max([1 / v for v in ttc.values() if v] or [0.0]), ttc),
+                       timings_ms={"detector": 2.0, "tracker": 0.5, "state": 0.1, "risk": 0.1, "total": 2.7 + frame})
+
+
+def test_evaluate_small_run(tmp_path):
+    A, B, C = (100, 100, 140, 130), (300, 100, 320, 112), (200, 90, 204, 93)
+    truths = [
+        _truth(0, [_obj(1, A, 15.0, ttc=1.5), _obj(2, B, 50.0), _obj(3, C, 90.0)]),   # 3 beyond 80 m: ignored
+        _truth(1, [_obj(1, A, 14.0, ttc=1.4), _obj(2, B, 50.0, vis=0.1)]),            # 2 occluded: ignored
+    ]
+    results = [
+        _result(0, [Track(10, A), Track(11, B), Track(12, C)],
+                {10: ObjectState(10, 0.4, 15.3, 0, -1.5), 11: ObjectState(11, 0.7, 48.0, 0, -1.0)},
+                {10: 1.6, 11: None}, [A, B, C]),
+        _result(1, [Track(10, A), Track(11, B), Track(13, (500, 10, 520, 30))],
+                {10: ObjectState(10, 0.5, 14.0, 0, -1.0)}, {10: 3.0}, [A, (500, 10, 520, 30)]),
+    ]
+    m, recs = evaluate(truths, results, EvalConfig(), wall_time_s=0.5, run_info={"scenario": "t"})
+    assert m["frames"] == 2
+    # distance pairs: (15.3 vs 15), (48 vs 50), (14 vs 14); ignored objects not scored
+    assert m["distance"]["count"] == 3
+    assert m["distance"]["rel_err_median"] == pytest.approx(0.02)
+    assert m["distance"]["by_range"]["10-20"]["count"] == 2
+    assert m["distance"]["by_range"]["40-80"]["rel_err_median"] == pytest.approx(0.04)
+    assert m["distance"]["by_range"]["0-10"]["count"] == 0
+    assert m["lateral"]["abs_err_median_m"] == pytest.approx(0.1)
+    assert m["rel_velocity"]["abs_err_median_mps"] == pytest.approx(0.0)
+    assert m["rel_velocity"]["abs_err_mean_mps"] == pytest.approx(0.5 / 3)
+    w = m["ttc"]["warning"]        # gt warns on obj 1 in both frames; estimate only in frame 0
+    assert (w["tp"], w["fp"], w["fn"]) == (1, 0, 1) and w["recall"] == 0.5 and w["precision"] == 1.0
+    d = m["detection"]             # frame 0: A, B counted hit; C ignored. frame 1: A hit, one FP
+    assert (d["tp"], d["fp"], d["fn"]) == (3, 1, 0)
+    t = m["tracking"]              # 3 counted object-frames, all matched; one FP track (13)
+    assert t["objects"] == 3 and t["misses"] == 0 and t["false_positives"] == 1 and t["id_switches"] == 0
+    assert t["mota"] == pytest.approx(1 - 1 / 3)
+    assert m["runtime_ms"]["total"] == pytest.approx(3.2) and m["fps"] == pytest.approx(4.0)
+    assert len(recs) == 3 + 2 + 1   # every GT object, plus the unmatched track 13
+
+    write_metrics(m, tmp_path / "metrics.json")
+    loaded = json.loads((tmp_path / "metrics.json").read_text())
+    assert loaded["distance"]["by_range"]["0-10"]["rel_err_median"] is None
+    write_csv(recs, tmp_path / "o.csv")
+    back = read_csv(tmp_path / "o.csv")
+    assert [(r.gt_id, r.track_id, r.matched) for r in back] == [(r.gt_id, r.track_id, r.matched) for r in recs]
+    assert back[0].d_y_est == pytest.approx(15.3) and back[3].d_y_est == pytest.approx(14.0)
+    assert math.isnan(back[4].d_y_est) and back[4].counted is False     # occluded object, no state
+
+
+def test_evaluate_rejects_misaligned_frames():
+    with pytest.raises(ValueError):
+        evaluate([_truth(0, [])], [_result(1, [], {}, {}, [])])

@@ -1,0 +1,203 @@
+"""State estimator: equations 3 and 4 against cv2.projectPoints, contact-line bias, velocity filters."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from monorarp.camera import CameraModel
+from monorarp.registry import create
+from monorarp.state import StateEstimator, eq3_distance, eq4_lateral, measure_boxes
+from monorarp.types import Track
+
+FPS = 30.0
+
+
+def project_cv2(cam: CameraModel, points_ego: np.ndarray) -> np.ndarray:
+    """Project ego-frame points with OpenCV, rotation built independently of CameraModel.
+
+    Ego (x right, y ahead, z up) -> level OpenCV camera (x, -z, y) -> pitched down about x.
+    """
+    level = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+    R_pitch, _ = cv2.Rodrigues(np.array([[cam.pitch_rad], [0.0], [0.0]]))
+    # Pitching the camera down turns the world up in its view: a point ahead at camera height gets
+    # y_cam = -sin(theta) * distance < 0 -- the rotation by +theta about the camera's x axis.
+    R = R_pitch @ level
+    rvec, _ = cv2.Rodrigues(R)
+    uv, _ = cv2.projectPoints(np.asarray(points_ego, dtype=np.float64).reshape(-1, 1, 3), rvec,
+                              np.zeros(3), cam.K, None)
+    return uv.reshape(-1, 2)
+
+
+def vehicle_box(cam: CameraModel, d_x: float, d_y: float, W=1.8, L=4.5, H=1.5, overhang=0.95, clearance=0.17):
+    """Tight image box of a box-shaped vehicle (rear face at d_y, centre d_x), via cv2.projectPoints.
+
+    Lowest points: rear bumper's lower edge (clearance above ground at the rear face) and the rear
+    tyres' contact line (overhang ahead of the rear face).
+    """
+    h = cam.height_m
+    pts = []
+    for x in (d_x - W / 2, d_x + W / 2):
+        for y in (d_y, d_y + L):
+            pts += [(x, y, -h + clearance), (x, y, -h + H)]
+        pts += [(x, d_y + overhang, -h), (x, d_y + L - overhang, -h)]
+    uv = project_cv2(cam, np.array(pts))
+    return (uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max())
+
+
+@pytest.fixture
+def level_cam():
+    return CameraModel.from_fov(640, 360, 60.0, 1.3)
+
+
+@pytest.fixture
+def pitched_cam():
+    return CameraModel.from_fov(640, 360, 60.0, 1.3, pitch_rad=math.radians(3.0))
+
+
+def test_cv2_reference_agrees_with_camera_model(pitched_cam):
+    pts = np.array([[1.0, 10.0, -1.3], [-3.0, 25.0, 0.4], [0.5, 7.0, -0.2]])
+    np.testing.assert_allclose(project_cv2(pitched_cam, pts), pitched_cam.project_ego(pts), atol=1e-9)
+    far_ahead = project_cv2(pitched_cam, np.array([[0.0, 1e7, 0.0]]))[0]
+    assert far_ahead[1] < pitched_cam.cy                       # pitched down: horizon above the centre
+    assert far_ahead[1] == pytest.approx(pitched_cam.horizon_row, abs=1e-4)
+
+
+@pytest.mark.parametrize("Y", [3.0, 7.5, 15.0, 40.0, 80.0])
+def test_eq3_level_camera_equals_paper_formula(level_cam, Y):
+    v_b = project_cv2(level_cam, np.array([[0.7, Y, -level_cam.height_m]]))[0, 1]
+    paper = eq3_distance(v_b, level_cam.horizon_row, level_cam.height_m, level_cam.fy)
+    box = np.array([[300.0, v_b - 40, 340.0, v_b]])
+    exact = measure_boxes(level_cam, box, contact_offset_m=0.0, ground_clearance_m=0.0)[0, 1]
+    assert paper == pytest.approx(Y, rel=1e-12)
+    assert exact == pytest.approx(paper, rel=1e-12)
+
+
+@pytest.mark.parametrize("Y", [4.0, 12.0, 30.0, 60.0])
+def test_eq3_pitched_camera_is_exact_where_paper_formula_is_not(pitched_cam, Y):
+    v_b = project_cv2(pitched_cam, np.array([[-1.0, Y, -pitched_cam.height_m]]))[0, 1]
+    exact = measure_boxes(pitched_cam, np.array([[300.0, v_b - 40, 340.0, v_b]]),
+                          contact_offset_m=0.0, ground_clearance_m=0.0)[0, 1]
+    paper = eq3_distance(v_b, pitched_cam.horizon_row, pitched_cam.height_m, pitched_cam.fy)
+    assert exact == pytest.approx(Y, rel=1e-9)
+    assert abs(paper - Y) / Y > 1e-4          # the small-angle formula is measurably off at 3 deg
+
+
+def test_eq3_above_horizon_is_nan(level_cam):
+    assert np.isnan(eq3_distance(level_cam.horizon_row - 1.0, level_cam.horizon_row, 1.3, level_cam.fy))
+
+
+@pytest.mark.parametrize("X", [3.7, -3.7, 8.0, -1.2, 1.2])
+@pytest.mark.parametrize("Y", [6.0, 20.0, 50.0])
+def test_eq4_far_edge_level_camera(level_cam, X, Y):
+    """Rear face only (no side): far edge from cv2, d_x from equation 4 and from the estimator."""
+    W, h = 1.8, level_cam.height_m
+    corners = np.array([[X - W / 2, Y, -h], [X + W / 2, Y, -h], [X - W / 2, Y, -h + 1.4], [X + W / 2, Y, -h + 1.4]])
+    uv = project_cv2(level_cam, corners)
+    box = np.array([[uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()]])
+    far = box[0, 2] if X > 0 else box[0, 0]
+    if abs(X) > W / 2:  # not straddling: the paper's equation 4 applies
+        assert eq4_lateral(Y, far - level_cam.cx, level_cam.fx, W) == pytest.approx(X, abs=1e-9)
+    d_x, d_y = measure_boxes(level_cam, box, W, 0.0, 0.0)[0]
+    assert d_y == pytest.approx(Y, rel=1e-9)
+    assert d_x == pytest.approx(X, abs=1e-9)
+
+
+@pytest.mark.parametrize("cam_name", ["level_cam", "pitched_cam"])
+@pytest.mark.parametrize("X", [0.0, 0.6, 3.5, -3.5, -7.0])
+@pytest.mark.parametrize("Y", [3.0, 5.0, 8.0, 20.0, 45.0, 80.0])
+def test_full_vehicle_rear_face_recovered_with_contact_correction(request, cam_name, X, Y):
+    """A 3-D box vehicle seen with its side, tyres and bumper: the default estimator recovers (X, Y)."""
+    cam = request.getfixturevalue(cam_name)
+    box = np.array([vehicle_box(cam, X, Y)])
+    d_x, d_y = measure_boxes(cam, box, 1.8, contact_offset_m=0.95, ground_clearance_m=0.17)[0]
+    assert d_y == pytest.approx(Y, rel=1e-9)
+    assert d_x == pytest.approx(X, abs=1e-6)
+    # The paper's formula (no correction) measures the tyre contact line or the bumper instead.
+    d_y_paper = measure_boxes(cam, box, 1.8, 0.0, 0.0)[0, 1]
+    assert d_y_paper - Y > 0.05
+
+
+def make_track_seq(cam, seq, noise, seed):
+    rng = np.random.default_rng(seed)
+    return [Track(1, tuple(np.array(vehicle_box(cam, dx, dy)) + rng.normal(0, noise, 4))) for _, dx, dy, _, _ in seq]
+
+
+def errors(est, cam, seq, noise, seed=0, skip=15):
+    est.reset()
+    out = []
+    for (t, dx, dy, vx, vy), tr in zip(seq, make_track_seq(cam, seq, noise, seed)):
+        s = est.update([tr], t)[1]
+        out.append((abs(s.d_y - dy) / dy, abs(s.v_y - vy), abs(s.d_x - dx)))
+    return np.median(np.array(out)[skip:], axis=0)
+
+
+def approach(d0=40.0, v=-5.0, dur=5.0, dx=0.0):
+    t = np.arange(int(dur * FPS)) / FPS
+    return [(ti, dx, d0 + v * ti, 0.0, v) for ti in t]
+
+
+def braking(d0=30.0, a=-4.0, dur=3.0):
+    t = np.arange(int(dur * FPS)) / FPS
+    return [(ti, 0.0, d0 + 0.5 * a * ti ** 2, 0.0, a * ti) for ti in t]
+
+
+@pytest.mark.parametrize("seq", [approach(), approach(dx=3.5), braking()], ids=["ahead", "adjacent", "braking"])
+def test_kalman_beats_difference_on_noisy_boxes(level_cam, seq):
+    kal = StateEstimator(level_cam, velocity="kalman")
+    dif = StateEstimator(level_cam, velocity="difference")
+    e_k = np.mean([errors(kal, level_cam, seq, 0.5, s) for s in range(3)], axis=0)
+    e_d = np.mean([errors(dif, level_cam, seq, 0.5, s) for s in range(3)], axis=0)
+    assert e_k[1] < e_d[1] / 5          # velocity
+    assert e_k[0] < e_d[0]              # distance
+    assert e_k[1] < 0.6                 # m/s
+    assert e_k[0] < 0.01                # 1 %
+
+
+def test_constant_acceleration_model_does_not_lag_braking(level_cam):
+    cv = errors(StateEstimator(level_cam, motion="cv", process_std=2.0), level_cam, braking(), 0.0)
+    ca = errors(StateEstimator(level_cam, motion="ca"), level_cam, braking(), 0.0)
+    assert ca[1] < 0.2 and ca[0] < 0.002
+    assert cv[1] > 1.0                   # the constant-velocity filter lags a 4 m/s^2 deceleration
+
+
+def test_difference_uses_frame_timestamps(level_cam):
+    """Irregular frame times (dropped frames): differencing is exact on exact boxes; v = 0 at init."""
+    est = StateEstimator(level_cam, velocity="difference")
+    times = [0.0, 1 / 30, 2 / 30, 5 / 30, 6 / 30, 11 / 30]
+    v_true = -6.0
+    for k, t in enumerate(times):
+        d = 30.0 + v_true * t
+        s = est.update([Track(4, vehicle_box(level_cam, 2.0, d))], t)[4]
+        assert s.d_y == pytest.approx(d, rel=1e-9)
+        assert s.v_y == pytest.approx(0.0 if k == 0 else v_true, abs=1e-6)
+        assert s.v_x == pytest.approx(0.0, abs=1e-6)
+
+
+def test_kalman_starts_at_rest_and_converges(level_cam):
+    est = StateEstimator(level_cam)
+    seq = approach(d0=25.0, v=-8.0, dur=2.0)
+    states = [est.update([tr], t)[1] for (t, *_), tr in zip(seq, make_track_seq(level_cam, seq, 0.0, 0))]
+    assert states[0].v_y == 0.0
+    assert states[-1].v_y == pytest.approx(-8.0, abs=0.05)
+
+
+def test_stale_coasting_tracks_are_dropped(level_cam):
+    est = StateEstimator(level_cam, max_coast_used=2)
+    box = vehicle_box(level_cam, 0.0, 20.0)
+    assert 1 in est.update([Track(1, box)], 0.0)
+    seen = [1 in est.update([Track(1, box, coasting=True)], k / FPS) for k in range(1, 6)]
+    assert seen == [True, True, False, False, False]
+    assert 1 in est.update([Track(1, box)], 6 / FPS)          # detected again: used again
+
+
+def test_registered_and_box_above_horizon_skipped(level_cam):
+    est = create("state", "geometric", camera=level_cam, velocity="difference")
+    assert isinstance(est, StateEstimator)
+    sky = (300.0, 10.0, 340.0, level_cam.horizon_row - 5.0)
+    assert est.update([Track(1, sky), Track(2, vehicle_box(level_cam, 0, 10))], 0.0).keys() == {2}
+    with pytest.raises(ValueError):
+        StateEstimator(level_cam, velocity="magic")
