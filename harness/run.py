@@ -29,7 +29,7 @@ from harness.scoring.evaluate import EvalConfig, evaluate, jsonable, write_metri
 from harness.scoring.records import write_csv
 from harness.scoring.tables import summary_table  # noqa: F401  (re-exported for callers)
 from monorarp.camera import CameraModel
-from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
+from monorarp.pipeline import Pipeline, PipelineConfig, run_sync, run_threaded
 from monorarp.registry import get_factory
 from monorarp.types import Frame, FrameResult
 
@@ -44,11 +44,8 @@ PRELOAD_BYTES = 1 << 30
 
 
 # ---------------------------------------------------------------------------- pipeline
-def _build(kind: str, comp: ComponentConfig | None, camera: CameraModel) -> Any:
-    if comp is None:
-        return None
-    factory = get_factory(kind, comp.name)
-    kwargs = dict(comp.kwargs)
+def _instantiate(factory: Any, kwargs: Mapping, camera: CameraModel) -> Any:
+    kwargs = dict(kwargs)
     try:
         takes_camera = "camera" in inspect.signature(factory).parameters
     except (TypeError, ValueError):
@@ -61,20 +58,24 @@ def _build(kind: str, comp: ComponentConfig | None, camera: CameraModel) -> Any:
 def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pipeline:
     """A :class:`Pipeline` from ``config``; the detector may also be an ``.onnx`` path or ``"oracle"``.
 
-    Raises :class:`~monorarp.errors.UserError` for unknown names or unusable model files.
+    Every component name is resolved before anything is built, so an unknown
+    name is reported before a model is loaded. ``camera`` is passed to every
+    factory that takes a ``camera`` argument. Raises
+    :class:`~monorarp.errors.UserError` for unknown names or unusable model files.
     """
     import harness.oracle  # noqa: F401  (registers the "oracle" detector)
     from monorarp.detection import load_detector
 
     cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
-    name = cfg.detector.name
-    if name.lower().endswith(".onnx"):
-        detector = load_detector(name, **cfg.detector.kwargs)
-    else:
-        detector = _build("detector", cfg.detector, camera)
-    return Pipeline(detector=detector, tracker=_build("tracker", cfg.tracker, camera),
-                    state=_build("state", cfg.state, camera), risk=_build("risk", cfg.risk, camera),
-                    ego_speed=_build("ego_speed", cfg.ego_speed, camera))
+    onnx = cfg.detector.name.lower().endswith(".onnx")
+    stages = {"detector": None if onnx else cfg.detector, "tracker": cfg.tracker, "state": cfg.state,
+              "risk": cfg.risk, "ego_speed": cfg.ego_speed}
+    factories = {k: get_factory(k, c.name) for k, c in stages.items() if c is not None}
+    built = {k: _instantiate(f, stages[k].kwargs, camera) for k, f in factories.items()}
+    if onnx:
+        built["detector"] = load_detector(cfg.detector.name, **cfg.detector.kwargs)
+    return Pipeline(detector=built["detector"], tracker=built["tracker"], state=built["state"],
+                    risk=built["risk"], ego_speed=built.get("ego_speed"))
 
 
 def describe(cfg: PipelineConfig) -> dict:

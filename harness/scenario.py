@@ -230,10 +230,14 @@ class Scenario(_Model):
 
 def _format_validation_error(path: Path, err: ValidationError) -> str:
     first = err.errors()[0]
-    loc = ".".join(str(p) for p in first["loc"] if not str(p).startswith("function-after")) or "<root>"
+    loc = ".".join(str(p) for p in first["loc"] if not str(p).startswith("function-after"))
     msg = first["msg"].removeprefix("Value error, ")
+    if first["type"] not in ("value_error", "missing", "extra_forbidden") and "input" in first:
+        given = first["input"]
+        if isinstance(given, (int, float, str, bool)) or given is None:
+            msg += f" (got {given!r})"
     more = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
-    return f"{path}: {loc}: {msg}{more}"
+    return f"{path}: {loc + ': ' if loc else ''}{msg}{more}"
 
 
 def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:

@@ -32,7 +32,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except UserError as e:
-        print(f"monorarp {args.command}: error: {e}", file=sys.stderr)
+        message = " ".join(str(e).split())
+        print(f"monorarp {args.command}: error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"monorarp {args.command}: interrupted", file=sys.stderr)

@@ -101,7 +101,7 @@ def draw_frame(image: np.ndarray, result: FrameResult, *, warning_s: float = 2.0
     header = [f"frame {result.index}  t={result.t:.2f}s"]
     total = result.timings_ms.get("total")
     if total is not None:
-        header[0] += f"  {total:.1f} ms" + (f" ({1000 / total:.0f} fps)" if total > 0 else "")
+        header[0] += f"  pipeline {total:.1f} ms" + (f" ({1000 / total:.0f} fps)" if total > 0 else "")
     speed = ego_speed if ego_speed is not None else result.ego_speed
     if speed is not None and np.isfinite(speed):
         header.append(f"ego {speed:.1f} m/s ({speed * 3.6:.0f} km/h)")

@@ -2,8 +2,12 @@
 
 The road is drawn directly: each painted stripe is a ground-plane rectangle in
 the ego frame, its corners projected with ``CameraModel.project_ego`` and filled
-with ``cv2.fillConvexPoly`` (anti-aliased, 1/16 px vertex precision). Road frame:
-``s`` along the road (m), lateral positions in metres to the right of the camera.
+with ``cv2.fillConvexPoly`` on a 4x supersampled canvas, then area-averaged down
+(so edges carry sub-pixel coverage). ``fillConvexPoly`` rounds vertices to whole
+pixels and fills inclusively, which grows a polygon by half a pixel on every
+side; polygons are shrunk by that half (sub)pixel first, so painted areas are
+unbiased. Road frame: ``s`` along the road (m), lateral positions in metres to
+the right of the camera.
 """
 
 from __future__ import annotations
@@ -37,26 +41,60 @@ class RoadSpec:
     noise_std: float = 0.0
     blur_px: float = 0.0
     far_m: float = 120.0
-    extras: list = field(default_factory=list)            # extra ground quads [(x0, x1, s0, s1, gray)]
+    extras: list = field(default_factory=list)            # extra ground quads on the road [(x0, x1, s0, s1, gray)]
+    riders: list = field(default_factory=list)            # ground quads moving with the ego [(x0, x1, y0, y1, gray)]
 
 
-def _quad(camera: CameraModel, x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
+SS = 4   # supersampling factor
+
+
+def _area2(poly: np.ndarray) -> float:
+    return float(np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1]))
+
+
+def _shrink(poly: np.ndarray, d: float) -> np.ndarray | None:
+    """Move every edge of a convex polygon (N, 2) inwards by ``d``; None when it vanishes or degenerates."""
+    area2 = _area2(poly)
+    e = np.roll(poly, -1, axis=0) - poly                       # edge i: vertex i -> i+1
+    if abs(area2) < 1e-9 or (np.linalg.norm(e, axis=1) < 1e-9).any():
+        return None
+    n = np.stack([-e[:, 1], e[:, 0]], axis=1) * np.sign(area2)   # inward normal for either orientation
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    p = poly + d * n                                            # a point on each offset edge line
+    out = np.empty_like(poly)
+    for i in range(len(poly)):                                  # vertex i joins edges i-1 and i
+        a, b = (i - 1) % len(poly), i
+        m = np.array([e[a], -e[b]]).T
+        if abs(np.linalg.det(m)) < 1e-12:
+            return None
+        s = np.linalg.solve(m, p[b] - p[a])[0]
+        out[i] = p[a] + s * e[a]
+    # Too thin to keep a positive area: it would turn inside out.
+    a, b = np.roll(out, -1, 0) - out, np.roll(out, -2, 0) - np.roll(out, -1, 0)
+    turns = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out if (np.sign(turns) == np.sign(area2)).all() else None
+
+
+def _fill(canvas: np.ndarray, camera: CameraModel, x0: float, x1: float, y0: float, y1: float, gray: int) -> None:
     pts = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float)
     p3 = np.concatenate([pts, np.full((4, 1), -camera.height_m)], axis=1)
-    return np.round(camera.project_ego(p3) * 16).astype(np.int32)
+    uv = camera.project_ego(p3) * SS + (SS - 1) / 2.0            # pixel centres of the fine canvas
+    uv = _shrink(uv, 0.5)
+    if uv is None:
+        return
+    cv2.fillConvexPoly(canvas, np.round(uv * 16).astype(np.int32), int(gray), cv2.LINE_8, 4)
 
 
 def render_road(camera: CameraModel, s: float, road: RoadSpec, rng: np.random.Generator | None = None) -> np.ndarray:
     """BGR uint8 frame with the camera at road position ``s`` (m)."""
     h, w = camera.height, camera.width
-    img = np.full((h, w, 3), road.road_gray, dtype=np.uint8)
-    hz = int(np.floor(camera.horizon_row))
-    img[: hz + 1] = road.sky_gray
+    canvas = np.full((h * SS, w * SS), road.road_gray, dtype=np.uint8)
+    canvas[: int(np.ceil((camera.horizon_row + 0.5) * SS))] = road.sky_gray
     near = 0.8
     for x, dashed, phase in zip(road.lines_x, road.dashed, road.phases_m):
         x0, x1 = x - road.width_m / 2, x + road.width_m / 2
         if not dashed:
-            cv2.fillConvexPoly(img, _quad(camera, x0, x1, near, road.far_m), (road.paint_gray,) * 3, cv2.LINE_AA, 4)
+            _fill(canvas, camera, x0, x1, near, road.far_m, road.paint_gray)
             continue
         k0 = int(np.floor((s + near - phase) / road.period_m)) - 1
         k1 = int(np.ceil((s + road.far_m - phase) / road.period_m))
@@ -65,17 +103,36 @@ def render_road(camera: CameraModel, s: float, road: RoadSpec, rng: np.random.Ge
             y1 = y0 + road.stripe_length_m
             y0, y1 = max(y0, near), min(y1, road.far_m)
             if y1 > y0:
-                cv2.fillConvexPoly(img, _quad(camera, x0, x1, y0, y1), (road.paint_gray,) * 3, cv2.LINE_AA, 4)
+                _fill(canvas, camera, x0, x1, y0, y1, road.paint_gray)
     for x0, x1, s0, s1, gray in road.extras:
         y0, y1 = max(s0 - s, near), min(s1 - s, road.far_m)
         if y1 > y0:
-            cv2.fillConvexPoly(img, _quad(camera, x0, x1, y0, y1), (gray,) * 3, cv2.LINE_AA, 4)
+            _fill(canvas, camera, x0, x1, y0, y1, gray)
+    for x0, x1, y0, y1, gray in road.riders:
+        _fill(canvas, camera, x0, x1, max(y0, near), y1, gray)
+    img = cv2.resize(canvas, (w, h), interpolation=cv2.INTER_AREA)
     if road.blur_px > 0:
         img = cv2.GaussianBlur(img, (0, 0), road.blur_px)
     if road.noise_std > 0:
         rng = rng or np.random.default_rng(0)
         img = np.clip(img + rng.normal(0.0, road.noise_std, img.shape), 0, 255).astype(np.uint8)
-    return img
+    return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+
+
+def true_stripe_ends(camera: CameraModel, s: float, road: RoadSpec, y_min: float, y_max: float):
+    """Exact stripe ends of the dashed lines in ``[y_min, y_max]`` (m ahead): list of (x, y, kind 0=near/1=far)."""
+    out = []
+    for x, dashed, phase in zip(road.lines_x, road.dashed, road.phases_m):
+        if not dashed:
+            continue
+        k0 = int(np.floor((s + y_min - phase) / road.period_m)) - 1
+        k1 = int(np.ceil((s + y_max - phase) / road.period_m)) + 1
+        for k in range(k0, k1 + 1):
+            y0 = phase + k * road.period_m - s
+            for y, kind in ((y0, 0), (y0 + road.stripe_length_m, 1)):
+                if y_min <= y <= y_max:
+                    out.append((x, y, kind))
+    return out
 
 
 def sequence(camera: CameraModel, speed_mps: float, fps: float, n_frames: int, road: RoadSpec | None = None,

@@ -105,7 +105,7 @@ def test_bad_scenario_leaves_previous_run_untouched(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "s.yaml"]
 
 
-@pytest.mark.parametrize("frames", ["0", "-3"])
+@pytest.mark.parametrize("frames", ["0", "-3", "151"])  # the default scenario has 10 s * 15 fps = 150
 def test_frames_must_be_positive(tmp_path, capsys, frames):
     path = tmp_path / "s.yaml"
     path.write_text("name: x\n")

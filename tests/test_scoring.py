@@ -203,3 +203,15 @@ def test_evaluate_small_run(tmp_path):
 def test_evaluate_rejects_misaligned_frames():
     with pytest.raises(ValueError):
         evaluate([_truth(0, [])], [_result(1, [], {}, {}, [])])
+
+
+def test_table_ii_lists_stage_times_and_fps():
+    from harness.scoring.tables import table_ii
+
+    m = {"runtime_ms": {"detector": 2.5, "tracker": 0.25, "state": 0.125, "risk": 0.0625, "total": 3.0},
+         "fps": 250.0}
+    rows = {line[:18].strip(): line[18:].split() for line in table_ii(m).splitlines()[3:]}
+    assert rows["Object Detector"] == ["2.500", "120.7"]
+    assert rows["Tracker"][0] == "0.250" and rows["Risk Estimator"][0] == "0.062"
+    assert rows["Total (stages)"] == ["3.000"] and rows["Total (FPS)"] == ["250.00", "5.56"]
+    assert "-" in table_ii({"runtime_ms": {}, "fps": float("nan")}, paper=False)

@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
                    help="output directory (created; a previous render there is replaced)")
     p.add_argument("--frames", type=int, default=None, metavar="N",
-                   help="number of frames to render (default: duration_s * fps of the scenario)")
+                   help="render only the first N frames (1 .. duration_s * fps; default: all)")
     p.add_argument("--crf", type=int, default=18, metavar="Q",
                    help="H.264 quality, x264 constant rate factor 0..51 (lower = better; default 18)")
     p.set_defaults(func=run)
@@ -50,13 +50,16 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.crf <= 51:
         raise UserError(f"--crf: must be in 0..51, got {args.crf}")
     scenario = load_scenario(args.scenario)
-    n_frames = args.frames if args.frames is not None else scenario.n_frames
-    if n_frames <= 0:
+    if scenario.n_frames <= 0:
         raise UserError(f"{args.scenario}: duration_s * fps gives no frames")
+    if args.frames is not None and args.frames > scenario.n_frames:
+        raise UserError(f"--frames: {args.frames} exceeds the scenario's {scenario.n_frames} frames "
+                        f"(duration_s * fps); raise duration_s in {args.scenario} to render more")
+    n_frames = args.frames if args.frames is not None else scenario.n_frames
     try:
         stats = render_scenario(scenario, args.out, n_frames, crf=args.crf)
     except ScenarioError as e:  # found by the simulation: make sure the message names the file
-        msg = str(e)
+        msg = str(e).removeprefix(f"scenario {scenario.name!r}: ")
         raise ScenarioError(msg if msg.startswith(str(args.scenario)) else f"{args.scenario}: {msg}") from None
     print(f"rendered {stats['frames']} frames ({stats['frames'] / scenario.fps:.2f} s at "
           f"{scenario.fps:g} fps) of '{scenario.name}', {stats['objects']} vehicles in view, "

@@ -42,6 +42,7 @@ ZNEAR_M = 0.05
 ZFAR_M = 6000.0
 PIXEL_CENTRE_SHIFT = 0.5
 HEADING_BIN_RAD = math.radians(1.0)
+_live_renderers = 0   # pyrender's EGL teardown terminates the shared display: only the last may do it
 
 
 @dataclass
@@ -124,15 +125,31 @@ class Renderer:
                                               znear=ZNEAR_M, zfar=ZFAR_M)
         self._cam_node = self._scene.add(self._cam, pose=np.eye(4))
         self._vehicles: dict[int, _Vehicle] = {}
+        global _live_renderers
         self._pr: pyrender.OffscreenRenderer | None = pyrender.OffscreenRenderer(c.width, c.height)
+        _live_renderers += 1
         inner = self._pr._renderer
         inner._read_main_framebuffer = types.MethodType(_read_colour_only, inner)
 
     # ----------------------------------------------------------------- lifecycle
     def close(self) -> None:
-        if self._pr is not None:
+        """Free the GL context (other live renderers keep theirs)."""
+        global _live_renderers
+        if self._pr is None:
+            return
+        _live_renderers -= 1
+        platform = self._pr._platform
+        if _live_renderers > 0 and getattr(platform, "_egl_display", None) is not None:
+            from OpenGL import EGL
+
+            platform.make_current()
+            self._pr._renderer.delete()
+            EGL.eglMakeCurrent(platform._egl_display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
+            EGL.eglDestroyContext(platform._egl_display, platform._egl_context)
+            platform._egl_context = platform._egl_display = None
+        else:
             self._pr.delete()
-            self._pr = None
+        self._pr = None
 
     def __enter__(self) -> "Renderer":
         return self

@@ -18,6 +18,6 @@ def apply_sensor(image: np.ndarray, noise_std: float, blur_px: float, seed: int,
                                borderType=cv2.BORDER_REFLECT101)
     if noise_std > 0:
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, int(frame) & 0xFFFFFFFF, 0x5E5])
-        noisy = out.astype(np.float32) + rng.normal(0.0, float(noise_std), out.shape).astype(np.float32)
+        noisy = out.astype(np.float32) + np.float32(noise_std) * rng.standard_normal(out.shape, dtype=np.float32)
         out = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
     return out

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-AMBIENT = 0.3
+AMBIENT = 0.5
 
 
 def shade(albedo_srgb: np.ndarray, normals: np.ndarray, light_dir: np.ndarray,

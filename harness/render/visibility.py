@@ -83,7 +83,8 @@ def full_window(box: np.ndarray, width: int, height: int, max_pixels: int) -> Wi
         return None
     area = (x1 - x0) * (y1 - y0)
     s = max(1, math.ceil(math.sqrt(area / max_pixels)))
-    return Window(x0, y0, math.ceil((x1 - x0) / s), math.ceil((y1 - y0) / s), s)
+    # Sizes rounded up to multiples of 32 px so the renderer's buffers are rarely reallocated.
+    return Window(x0, y0, -(-math.ceil((x1 - x0) / s) // 32) * 32, -(-math.ceil((y1 - y0) / s) // 32) * 32, s)
 
 
 def _overlaps(a: np.ndarray, b: np.ndarray, margin: float) -> bool:

@@ -36,12 +36,12 @@ class _Side:
 
     def __init__(self) -> None:
         self.x: float | None = None          # lateral position of the reference line (m)
-        self.on = False
+        self.on: bool | None = None          # None until the first sample (no event on start-up)
         self.appear: deque[float] = deque()
         self.contrast_hist: deque[float] = deque(maxlen=90)
 
     def clear_events(self) -> None:
-        self.on = False
+        self.on = None
         self.appear.clear()
 
 
@@ -200,7 +200,9 @@ class LsdPeriodEgoSpeed:
         level = float(np.percentile(side.contrast_hist, 90)) if len(side.contrast_hist) >= 5 else c
         thr_on = max(self.min_contrast, 0.5 * level)
         thr_off = 0.6 * thr_on
-        if not side.on and c >= thr_on:
+        if side.on is None:
+            side.on = c >= thr_on
+        elif not side.on and c >= thr_on:
             side.on = True
             side.appear.append(t)
         elif side.on and c < thr_off:

@@ -4,8 +4,9 @@ Each track ``k`` is a set of observations ``(t, y)`` of one stationary road
 feature; they all move with a common velocity ``dy/dt = slope`` but each has its
 own offset. Weighted least squares with a common slope and one intercept per
 track has the closed form ``slope = sum w (t - tb_k)(y - yb_k) / sum w (t - tb_k)^2``
-(``tb_k``, ``yb_k``: the track's weighted means). Outliers are removed by their
-normalised residual and the fit repeated.
+(``tb_k``, ``yb_k``: the track's weighted means). Outliers are first removed
+against a robust start (median of the tracks' successive-step slopes, per-track
+median offsets), then by their normalised residual after each least-squares fit.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ def pooled_slope(track: np.ndarray, t: np.ndarray, y: np.ndarray, sigma: np.ndar
     y = np.asarray(y, dtype=float)
     w_all = 1.0 / np.square(np.asarray(sigma, dtype=float))
     _, k = np.unique(track, return_inverse=True)
-    keep = np.ones(t.size, dtype=bool)
+    keep = _robust_inliers(k, t, y, np.sqrt(w_all), reject)
     fit = None
     for it in range(iterations + 1):
         w = np.where(keep, w_all, 0.0)
@@ -63,3 +64,22 @@ def pooled_slope(track: np.ndarray, t: np.ndarray, y: np.ndarray, sigma: np.ndar
             break
         keep = new_keep
     return fit
+
+
+def _robust_inliers(k: np.ndarray, t: np.ndarray, y: np.ndarray, inv_sigma: np.ndarray, reject: float) -> np.ndarray:
+    """Observations within ``reject`` sigma of a robust common-slope fit (all of them if none can be made)."""
+    order = np.lexsort((t, k))
+    ks, ts, ys = k[order], t[order], y[order]
+    step = (ks[1:] == ks[:-1]) & (ts[1:] > ts[:-1])
+    if not step.any():
+        return np.ones(t.size, dtype=bool)
+    slope = float(np.median((ys[1:] - ys[:-1])[step] / (ts[1:] - ts[:-1])[step]))
+    r = y - slope * t
+    # Per-track median of r: sort by (track, r) and take each track's middle element.
+    o = np.lexsort((r, k))
+    counts = np.bincount(k)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    med = np.zeros(counts.size)
+    has = counts > 0
+    med[has] = r[o][starts[has] + counts[has] // 2]
+    return np.abs(r - med[k]) * inv_sigma <= reject

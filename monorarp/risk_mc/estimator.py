@@ -92,6 +92,7 @@ class MonteCarloRisk:
         decel_limit_mps2: float = 8.0,
         noise: Noise | dict | None = None,
         drivers: DriverDistribution | None = None,
+        dtype: str = "float32",
     ) -> None:
         if n_rollouts < 1:
             raise ValueError(f"n_rollouts must be >= 1, got {n_rollouts}")
@@ -115,7 +116,8 @@ class MonteCarloRisk:
                                     mobil_interval_s=mobil_interval_s,
                                     lane_change_duration_s=lane_change_duration_s,
                                     lane_change_cooldown_s=lane_change_cooldown_s,
-                                    decel_limit_mps2=decel_limit_mps2, near_miss_ttc_s=near_miss_ttc_s)
+                                    decel_limit_mps2=decel_limit_mps2, near_miss_ttc_s=near_miss_ttc_s,
+                                    dtype=dtype)
         self._fed_ego_speed: float | None = None
         self._blocks: dict[int, np.ndarray] = {}
         self.ego_speed_source = "none"

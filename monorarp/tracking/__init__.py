@@ -1,10 +1,16 @@
 """Trackers: detections in, boxes with stable ids out (the paper's section IV-B).
 
 Importing this package registers the built-in trackers with
-:mod:`monorarp.registry` (kind ``"tracker"``).
+:mod:`monorarp.registry` (kind ``"tracker"``): ``particle`` (the paper's),
+``kcf``, ``csrt``, ``mosse``, ``medianflow`` (OpenCV, :mod:`.opencv`),
+``sort`` and ``bytetrack`` (Kalman filter + optimal assignment).
 """
 
-from monorarp.tracking import association, particle  # noqa: F401  (runs @register)
+from monorarp.tracking import association, bytetrack, opencv, particle, sort  # noqa: F401  (runs @register)
+from monorarp.tracking.bytetrack import ByteTracker
+from monorarp.tracking.opencv import CSRTTracker, KCFTracker, MedianFlowTracker, MOSSETracker, OpenCVMultiTracker
 from monorarp.tracking.particle import ParticleTracker
+from monorarp.tracking.sort import SortTracker
 
-__all__ = ["ParticleTracker", "association", "particle"]
+__all__ = ["ByteTracker", "CSRTTracker", "KCFTracker", "MOSSETracker", "MedianFlowTracker", "OpenCVMultiTracker",
+           "ParticleTracker", "SortTracker", "association", "bytetrack", "opencv", "particle", "sort"]

@@ -1,0 +1,270 @@
+"""Monte Carlo IDM/MOBIL risk: driver maths and rollouts against highway-env's own IDMVehicle, risk behaviour.
+
+highway-env is imported here (tests only), never by ``monorarp``. Parameter
+mapping: highway-env measures gaps centre to centre and its jam distance
+``DISTANCE_WANTED`` (5 m + length) is centre to centre too; our IDM measures net
+gaps, so a highway-env scene maps onto ours with vehicle length 0 and
+``s0 = DISTANCE_WANTED``; ``COMFORT_ACC_MAX = a``, ``-COMFORT_ACC_MIN = b``,
+``TIME_WANTED = T``, ``DELTA = delta``, ``target_speed = v0``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from highway_env.road.road import Road, RoadNetwork
+from highway_env.vehicle.behavior import IDMVehicle
+
+from monorarp.risk_mc import MonteCarloRisk
+from monorarp.risk_mc.drivers import DriverDistribution, DriverParams, Truncated
+from monorarp.risk_mc.idm import idm_acceleration
+from monorarp.risk_mc.rollout import RolloutConfig, Scene, mobil_sides, simulate
+from monorarp.types import ObjectState
+
+LANE_W = 4.0  # highway-env's lane width
+
+
+def _road(lanes: int, seed: int = 0) -> Road:
+    net = RoadNetwork.straight_road_network(lanes=lanes, length=10000.0, speed_limit=1000.0)
+    return Road(network=net, np_random=np.random.RandomState(seed))
+
+
+def _hw_vehicle(road, x, lane, speed, v0, a=3.0, b=5.0, T=1.5, s0=10.0, p=0.0, th=0.2, bsafe=2.0):
+    veh = IDMVehicle(road, np.array([x, lane * LANE_W], dtype=float), heading=0.0, speed=speed, target_speed=v0)
+    veh.COMFORT_ACC_MAX, veh.COMFORT_ACC_MIN, veh.TIME_WANTED, veh.DISTANCE_WANTED = a, -b, T, s0
+    veh.POLITENESS, veh.LANE_CHANGE_MIN_ACC_GAIN, veh.LANE_CHANGE_MAX_BRAKING_IMPOSED = p, th, bsafe
+    veh.DELTA = 4.0
+    road.vehicles.append(veh)
+    return veh
+
+
+# ----------------------------------------------------------------------------- (a) IDM acceleration
+def test_idm_acceleration_equals_highway_env_idmvehicle():
+    rng = np.random.default_rng(1)
+    road = _road(1)
+    ours, theirs = [], []
+    for _ in range(300):
+        a, b, T = rng.uniform(0.5, 3.0), rng.uniform(1.0, 6.0), rng.uniform(0.8, 2.5)
+        s0, v, v0 = rng.uniform(6.0, 14.0), rng.uniform(0.0, 38.0), rng.uniform(5.0, 40.0)
+        d, v_lead = rng.uniform(5.5, 120.0), rng.uniform(0.0, 38.0)
+        road.vehicles.clear()
+        ego = _hw_vehicle(road, 100.0, 0, v, v0, a, b, T, s0)
+        front = _hw_vehicle(road, 100.0 + d, 0, v_lead, v_lead)
+        theirs.append(ego.acceleration(ego_vehicle=ego, front_vehicle=front))
+        ours.append(idm_acceleration(v, v0, d, v - v_lead, a, b, T, s0, floor_s_star=False))
+        # free road
+        theirs.append(ego.acceleration(ego_vehicle=ego, front_vehicle=None))
+        ours.append(idm_acceleration(v, v0, np.inf, 0.0, a, b, T, s0, floor_s_star=False))
+    np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=1e-9)
+    # Treiber's floored s* differs only where the dynamic part v*T + v*dv/(2 sqrt(ab)) is negative
+    assert np.ptp(theirs) > 10.0  # the sample spans free driving to hard braking
+
+
+def test_idm_floor_only_matters_when_leader_pulls_away():
+    v, v0, a, b, T, s0 = 20.0, 30.0, 1.5, 2.0, 1.5, 2.0
+    closing = idm_acceleration(v, v0, 30.0, 3.0, a, b, T, s0)
+    assert closing == idm_acceleration(v, v0, 30.0, 3.0, a, b, T, s0, floor_s_star=False)
+    # leader much faster: s* dynamic part < 0; highway-env's unfloored s* would even brake
+    floored = idm_acceleration(v, v0, 30.0, -30.0, a, b, T, s0)
+    assert floored == pytest.approx(a * (1 - (v / v0) ** 4 - (s0 / 30.0) ** 2))
+
+
+# ----------------------------------------------------------------------------- (b) car-following rollout
+def _one_lane_case():
+    xs = np.array([0.0, 35.0, 70.0, 120.0, 160.0])
+    vs = np.array([28.0, 24.0, 26.0, 18.0, 22.0])
+    v0s = np.array([31.0, 27.0, 30.0, 20.0, 24.0])
+    return xs, vs, v0s
+
+
+def _highway_one_lane(dt: float, steps: int):
+    xs, vs, v0s = _one_lane_case()
+    road = _road(1)
+    vehs = [_hw_vehicle(road, 50.0 + x, 0, v, v0) for x, v, v0 in zip(xs, vs, v0s)]
+    traj_x, traj_v = [[veh.position[0] - 50.0 for veh in vehs]], [[veh.speed for veh in vehs]]
+    for _ in range(steps):
+        road.act()
+        road.step(dt)
+        traj_x.append([veh.position[0] - 50.0 for veh in vehs])
+        traj_v.append([veh.speed for veh in vehs])
+    assert not any(veh.crashed for veh in vehs)
+    return np.array(traj_x), np.array(traj_v)
+
+
+def _ours_one_lane(dt: float, steps: int, integrator: str):
+    xs, vs, v0s = _one_lane_case()
+    n = len(xs)
+    scene = Scene(x=xs[None], y=np.zeros((1, n)), v=vs[None], target_lane=np.zeros((1, n), int),
+                  length=np.zeros(n), width=np.full(n, 2.0), mobil=np.zeros(n, bool))
+    params = DriverParams.uniform((1, n), v0=v0s[None], a=3.0, b=5.0, T=1.5, s0=10.0)
+    cfg = RolloutConfig(dt=dt, horizon_s=steps * dt, lane_width_m=LANE_W, integrator=integrator,
+                        floor_s_star=False, accel_limit_mps2=6.0, decel_limit_mps2=6.0)
+    res = simulate(scene, params, cfg, record=True)
+    return res.x[:, 0], res.v[:, 0]
+
+
+def test_car_following_rollout_matches_highway_env_road_stepping():
+    dt, steps = 0.1, 60
+    hx, hv = _highway_one_lane(dt, steps)
+    assert np.abs(np.diff(hv, axis=0)).max() > 0.05   # the vehicles really interact
+    # Same integrator as highway-env's Vehicle.step on a straight lane (x += v dt, then v += a dt):
+    ex, ev = _ours_one_lane(dt, steps, "euler")
+    np.testing.assert_allclose(ex, hx, atol=1e-6)
+    np.testing.assert_allclose(ev, hv, atol=1e-6)
+    # Our default ballistic scheme differs by O(a dt^2 / 2) per step: |dx| <= sum |a| dt^2 / 2 <= 6 * 6 s * 0.1 / 2.
+    bx, bv = _ours_one_lane(dt, steps, "ballistic")
+    assert np.abs(bx - hx).max() < 0.6
+    assert np.abs(bv - hv).max() < 0.3
+
+
+# ----------------------------------------------------------------------------- (c) MOBIL decisions
+def _mobil_compare(cars, lanes: int):
+    """cars: list of dicts(x, lane, v, v0, a, b, T, s0, p, th, bsafe). Returns (ours (2, N), theirs (2, N))."""
+    road = _road(lanes)
+    vehs = [_hw_vehicle(road, 50.0 + c["x"], c["lane"], c["v"], c["v0"], c["a"], c["b"], c["T"], c["s0"],
+                        c["p"], c["th"], c["bsafe"]) for c in cars]
+    theirs = np.zeros((2, len(cars)), bool)
+    for i, veh in enumerate(vehs):
+        for side, d in ((0, -1), (1, 1)):
+            lane = cars[i]["lane"] + d
+            if 0 <= lane < lanes:
+                theirs[side, i] = veh.mobil(("0", "1", lane))
+    n = len(cars)
+    col = lambda k: np.array([[c[k] for c in cars]], dtype=float)  # noqa: E731
+    scene = Scene(x=col("x"), y=col("lane") * LANE_W, v=col("v"), target_lane=col("lane").astype(int),
+                  length=np.zeros(n), width=np.full(n, 2.0), mobil=np.ones(n, bool))
+    params = DriverParams(v0=col("v0"), T=col("T"), s0=col("s0"), a=col("a"), b=col("b"), politeness=col("p"),
+                          threshold=col("th"), b_safe=col("bsafe"))
+    cfg = RolloutConfig(lane_width_m=LANE_W, lane_min=0, lane_max=lanes - 1, floor_s_star=False)
+    return mobil_sides(scene, params, cfg)[:, 0], theirs
+
+
+def _car(x, lane, v, v0, **kw):
+    base = dict(a=3.0, b=5.0, T=1.5, s0=10.0, p=0.0, th=0.2, bsafe=2.0)
+    base.update(kw)
+    return dict(x=x, lane=lane, v=v, v0=v0, **base)
+
+
+def test_mobil_hand_built_situations_agree_with_highway_env():
+    # slow leader ahead, adjacent lane free -> change right
+    ours, theirs = _mobil_compare([_car(0.0, 0, 25.0, 30.0), _car(25.0, 0, 15.0, 15.0)], lanes=2)
+    assert theirs[1, 0] and ours[1, 0]
+    # same, but a fast car close behind in the target lane -> unsafe, no change
+    cars = [_car(0.0, 0, 25.0, 30.0), _car(25.0, 0, 15.0, 15.0), _car(-8.0, 1, 30.0, 30.0)]
+    ours, theirs = _mobil_compare(cars, lanes=2)
+    assert not theirs[1, 0] and not ours[1, 0]
+    # no reason to change: free road ahead
+    ours, theirs = _mobil_compare([_car(0.0, 0, 25.0, 25.0)], lanes=2)
+    assert not theirs[1, 0] and not ours[1, 0]
+    # a polite driver does not cut in front of a follower it would make brake
+    cars = [_car(0.0, 0, 20.0, 24.0, p=1.0), _car(30.0, 0, 17.0, 17.0), _car(-18.0, 1, 28.0, 30.0)]
+    ours, theirs = _mobil_compare(cars, lanes=2)
+    np.testing.assert_array_equal(ours, theirs)
+
+
+def test_mobil_random_scenes_agree_with_highway_env():
+    rng = np.random.default_rng(7)
+    agree = total = changes = 0
+    for _ in range(40):
+        n, lanes = int(rng.integers(2, 7)), int(rng.integers(2, 4))
+        xs = rng.permutation(np.arange(n) * 22.0 + rng.uniform(0, 8, n))   # distinct positions
+        cars = [_car(float(xs[i]), int(rng.integers(0, lanes)), float(rng.uniform(8, 32)),
+                     float(rng.uniform(15, 35)), a=rng.uniform(0.5, 3), b=rng.uniform(1, 5),
+                     T=rng.uniform(0.8, 2.5), s0=rng.uniform(6, 12), p=rng.uniform(0, 1),
+                     th=rng.uniform(0.05, 0.5), bsafe=rng.uniform(1.5, 5)) for i in range(n)]
+        # avoid two cars in one lane overlapping (highway-env would count them as crashed)
+        ours, theirs = _mobil_compare(cars, lanes)
+        agree += int((ours == theirs).sum())
+        total += ours.size
+        changes += int(theirs.sum())
+    assert changes > 10          # the sample contains plenty of positive decisions
+    assert agree == total
+
+
+# ----------------------------------------------------------------------------- drivers
+def test_truncated_sampling_respects_ranges_and_shape():
+    rng = np.random.default_rng(0)
+    blk = DriverDistribution().draw_block(rng, 20000)
+    d = DriverDistribution()
+    for row, name in enumerate(("T", "s0", "a", "b", "politeness", "threshold", "b_safe")):
+        tr: Truncated = getattr(d, name)
+        assert blk[row].min() >= tr.lo and blk[row].max() <= tr.hi
+        # no pile-up at the bounds (inverse-CDF truncation, not clipping)
+        assert np.mean(blk[row] == tr.lo) < 1e-3 and np.mean(blk[row] == tr.hi) < 1e-3
+    # truncated-normal mean against scipy's closed form
+    from scipy.stats import truncnorm
+    tr = d.T
+    ref = truncnorm.mean((tr.lo - tr.mean) / tr.std, (tr.hi - tr.mean) / tr.std, loc=tr.mean, scale=tr.std)
+    assert blk[0].mean() == pytest.approx(ref, abs=0.01)
+
+
+# ----------------------------------------------------------------------------- risk behaviour
+def _state(tid, d_x, d_y, v_x=0.0, v_y=0.0):
+    return ObjectState(tid, d_x, d_y, v_x, v_y)
+
+
+def test_empty_and_far_scenes_have_no_risk():
+    est = MonteCarloRisk(n_rollouts=200)
+    assert est.assess({}, 0.0, ego_speed=25.0).risk == 0.0
+    far = {1: _state(1, 0.0, 250.0), 2: _state(2, 3.7, 180.0, v_y=2.0), 3: _state(3, -3.7, 120.0, v_y=3.0)}
+    r = est.assess(far, 0.0, ego_speed=25.0)
+    assert r.risk <= 0.01
+    assert all(v is None for v in r.ttc.values())
+
+
+def test_stopped_vehicle_ahead_is_near_certain_conflict():
+    est = MonteCarloRisk(n_rollouts=300)
+    r = est.assess({7: _state(7, 0.0, 15.0, v_y=-25.0)}, 0.0, ego_speed=25.0)
+    assert r.risk >= 0.95
+    # its time to first conflict is the constant-velocity TTC: (15 m - half the ego's 4.5 m) / 25 m/s
+    assert r.ttc[7] == pytest.approx((15.0 - 2.25) / 25.0, abs=0.06)
+    paper = MonteCarloRisk(n_rollouts=300, score="inverse_ttc").assess({7: _state(7, 0.0, 15.0, v_y=-25.0)}, 0.0, 25.0)
+    # most rollouts collide (IDM + 8 m/s^2 cannot stop in 12.75 m from 25 m/s): mean 1/t_collision is large
+    assert paper.risk > 0.5
+
+
+def test_risk_is_monotone_in_closing_speed():
+    est = MonteCarloRisk(n_rollouts=300)
+    risks = [est.assess({1: _state(1, 0.0, 40.0, v_y=-dv)}, 0.0, ego_speed=30.0).risk
+             for dv in (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)]
+    assert all(b >= a for a, b in zip(risks, risks[1:])), risks
+    assert risks[0] < 0.05 and risks[-1] > 0.9
+
+
+def test_deterministic_for_a_seed_and_seed_matters():
+    scene = {1: _state(1, 0.0, 30.0, v_y=-20.0), 2: _state(2, 3.7, 10.0, v_x=-0.3, v_y=-2.0)}
+    r1 = MonteCarloRisk(n_rollouts=200, seed=3).assess(scene, 1.0, ego_speed=25.0)
+    r2 = MonteCarloRisk(n_rollouts=200, seed=3).assess(scene, 5.0, ego_speed=25.0)
+    assert r1 == r2
+    risks = {MonteCarloRisk(n_rollouts=200, seed=s).assess(scene, 1.0, ego_speed=25.0).risk for s in range(4)}
+    assert 0.0 < min(risks) and max(risks) < 1.0 and len(risks) > 1
+
+
+def test_ego_speed_sources_and_lane_geometry():
+    est = MonteCarloRisk(n_rollouts=50, ego_speed_mps=20.0)
+    st = {1: _state(1, 3.9, 30.0, v_y=-1.0)}
+    est.assess(st, 0.0)
+    assert est.ego_speed_source == "configured"
+    est.set_ego_speed(31.0)
+    scene, _ = est.build(st, est._ego_speed(None))
+    assert est.ego_speed_source == "fed"
+    # absolute speed = ego + relative; lane from lateral offset; centre = rear distance + half length
+    assert np.median(scene.v[:, 1]) == pytest.approx(30.0, abs=0.2)
+    assert np.median(scene.x[:, 1]) == pytest.approx(30.0 + 2.25, abs=0.2)
+    assert (np.rint(scene.y[:, 1] / 3.7) == 1).mean() > 0.99
+    est.assess(st, 0.0, ego_speed=10.0)
+    assert est.ego_speed_source == "argument"
+    est2 = MonteCarloRisk(n_rollouts=50)
+    est2.assess(st, 0.0)
+    assert est2.ego_speed_source == "fallback"
+
+
+def test_registered_as_risk_monte_carlo():
+    from importlib.metadata import entry_points
+
+    from monorarp.registry import _REGISTRY
+
+    assert _REGISTRY["risk"]["monte_carlo"] is MonteCarloRisk
+    eps = {ep.name: ep.value for ep in entry_points(group="monorarp.risk")}
+    assert eps.get("monte_carlo") == "monorarp.risk_mc.estimator:MonteCarloRisk"
