@@ -37,7 +37,7 @@ def register(kind: str, name: str) -> Callable[[Callable[..., Any]], Callable[..
 
 def _load_builtins() -> None:
     # Importing the modules runs their @register decorators.
-    from monorarp import detection, risk, state, tracking  # noqa: F401
+    from monorarp import detection, ego_speed, risk, risk_mc, state, tracking  # noqa: F401
 
 
 def available(kind: str) -> list[str]:

@@ -60,10 +60,16 @@ class ObjectState:
 
 @dataclass(frozen=True)
 class RiskEstimate:
-    """Scene risk (1/s: max over vehicles of 1/TTC; 0 when none is on a collision course)."""
+    """Scene risk score and per-object TTC.
+
+    ``kind`` says what ``risk`` is: ``"inverse_ttc"`` (1/s, the paper's eq. 5: max over
+    vehicles of 1/TTC, 0 when none is on a collision course) or ``"probability"``
+    (unitless, P(collision or near miss within the horizon), Monte Carlo estimator).
+    """
 
     risk: float
     ttc: dict[int, float | None] = field(default_factory=dict)  # track id -> TTC (s) or None
+    kind: str = "inverse_ttc"
 
 
 @dataclass

@@ -48,41 +48,47 @@ class RoadSpec:
 SS = 4   # supersampling factor
 
 
-def _area2(poly: np.ndarray) -> float:
-    return float(np.sum(poly[:, 0] * np.roll(poly[:, 1], -1) - np.roll(poly[:, 0], -1) * poly[:, 1]))
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
-def _shrink(poly: np.ndarray, d: float) -> np.ndarray | None:
-    """Move every edge of a convex polygon (N, 2) inwards by ``d``; None when it vanishes or degenerates."""
-    area2 = _area2(poly)
-    e = np.roll(poly, -1, axis=0) - poly                       # edge i: vertex i -> i+1
-    if abs(area2) < 1e-9 or (np.linalg.norm(e, axis=1) < 1e-9).any():
-        return None
-    n = np.stack([-e[:, 1], e[:, 0]], axis=1) * np.sign(area2)   # inward normal for either orientation
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    p = poly + d * n                                            # a point on each offset edge line
-    out = np.empty_like(poly)
-    for i in range(len(poly)):                                  # vertex i joins edges i-1 and i
-        a, b = (i - 1) % len(poly), i
-        m = np.array([e[a], -e[b]]).T
-        if abs(np.linalg.det(m)) < 1e-12:
-            return None
-        s = np.linalg.solve(m, p[b] - p[a])[0]
-        out[i] = p[a] + s * e[a]
-    # Too thin to keep a positive area: it would turn inside out.
-    a, b = np.roll(out, -1, 0) - out, np.roll(out, -2, 0) - np.roll(out, -1, 0)
-    turns = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
-    return out if (np.sign(turns) == np.sign(area2)).all() else None
+def shrink_quads(quads: np.ndarray, d: float) -> tuple[np.ndarray, np.ndarray]:
+    """Move every edge of convex polygons (N, V, 2) inwards by ``d``.
+
+    Returns the new polygons and a mask of those still convex with the same
+    orientation (thinner than ``2 d`` ones turn inside out and must be dropped).
+    """
+    e = np.roll(quads, -1, axis=1) - quads                         # edge i: vertex i -> i+1
+    area2 = _cross(quads, np.roll(quads, -1, axis=1)).sum(axis=1)
+    length = np.linalg.norm(e, axis=-1)
+    ok = (np.abs(area2) > 1e-9) & (length > 1e-9).all(axis=1)
+    n = np.stack([-e[..., 1], e[..., 0]], axis=-1) * np.sign(area2)[:, None, None]
+    n = n / np.where(length > 1e-9, length, 1.0)[..., None]
+    p = quads + d * n                                               # a point on each offset edge line
+    ea, pa = np.roll(e, 1, axis=1), np.roll(p, 1, axis=1)           # edge i-1 meets edge i at vertex i
+    den = _cross(ea, e)
+    ok &= (np.abs(den) > 1e-12).all(axis=1)
+    s = _cross(p - pa, e) / np.where(np.abs(den) > 1e-12, den, 1.0)
+    out = pa + s[..., None] * ea
+    turns = _cross(np.roll(out, -1, 1) - out, np.roll(out, -2, 1) - np.roll(out, -1, 1))
+    ok &= (np.sign(turns) == np.sign(area2)[:, None]).all(axis=1)
+    return out, ok
 
 
-def _fill(canvas: np.ndarray, camera: CameraModel, x0: float, x1: float, y0: float, y1: float, gray: int) -> None:
-    pts = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float)
-    p3 = np.concatenate([pts, np.full((4, 1), -camera.height_m)], axis=1)
-    uv = camera.project_ego(p3) * SS + (SS - 1) / 2.0            # pixel centres of the fine canvas
-    uv = _shrink(uv, 0.5)
-    if uv is None:
+def _fill_all(canvas: np.ndarray, camera: CameraModel, rects: list[tuple[float, float, float, float, int]]) -> None:
+    """Paint ego-frame ground rectangles ``(x0, x1, y0, y1, gray)`` onto the supersampled canvas."""
+    if not rects:
         return
-    cv2.fillConvexPoly(canvas, np.round(uv * 16).astype(np.int32), int(gray), cv2.LINE_8, 4)
+    r = np.array(rects, dtype=float)
+    x = r[:, [0, 1, 1, 0]]
+    y = r[:, [2, 2, 3, 3]]
+    p3 = np.stack([x, y, np.full_like(x, -camera.height_m)], axis=-1)
+    uv = camera.project_ego(p3) * SS + (SS - 1) / 2.0               # pixel centres of the fine canvas
+    uv, ok = shrink_quads(uv, 0.5)
+    pts = np.round(uv * 16).astype(np.int32)
+    for q, keep, gray in zip(pts, ok, r[:, 4]):
+        if keep:
+            cv2.fillConvexPoly(canvas, q, int(gray), cv2.LINE_8, 4)
 
 
 def render_road(camera: CameraModel, s: float, road: RoadSpec, rng: np.random.Generator | None = None) -> np.ndarray:
@@ -91,10 +97,11 @@ def render_road(camera: CameraModel, s: float, road: RoadSpec, rng: np.random.Ge
     canvas = np.full((h * SS, w * SS), road.road_gray, dtype=np.uint8)
     canvas[: int(np.ceil((camera.horizon_row + 0.5) * SS))] = road.sky_gray
     near = 0.8
+    rects = []
     for x, dashed, phase in zip(road.lines_x, road.dashed, road.phases_m):
         x0, x1 = x - road.width_m / 2, x + road.width_m / 2
         if not dashed:
-            _fill(canvas, camera, x0, x1, near, road.far_m, road.paint_gray)
+            rects.append((x0, x1, near, road.far_m, road.paint_gray))
             continue
         k0 = int(np.floor((s + near - phase) / road.period_m)) - 1
         k1 = int(np.ceil((s + road.far_m - phase) / road.period_m))
@@ -103,19 +110,20 @@ def render_road(camera: CameraModel, s: float, road: RoadSpec, rng: np.random.Ge
             y1 = y0 + road.stripe_length_m
             y0, y1 = max(y0, near), min(y1, road.far_m)
             if y1 > y0:
-                _fill(canvas, camera, x0, x1, y0, y1, road.paint_gray)
+                rects.append((x0, x1, y0, y1, road.paint_gray))
     for x0, x1, s0, s1, gray in road.extras:
         y0, y1 = max(s0 - s, near), min(s1 - s, road.far_m)
         if y1 > y0:
-            _fill(canvas, camera, x0, x1, y0, y1, gray)
-    for x0, x1, y0, y1, gray in road.riders:
-        _fill(canvas, camera, x0, x1, max(y0, near), y1, gray)
+            rects.append((x0, x1, y0, y1, gray))
+    _fill_all(canvas, camera, rects)
+    _fill_all(canvas, camera, [(x0, x1, max(y0, near), y1, g) for x0, x1, y0, y1, g in road.riders])
     img = cv2.resize(canvas, (w, h), interpolation=cv2.INTER_AREA)
     if road.blur_px > 0:
         img = cv2.GaussianBlur(img, (0, 0), road.blur_px)
     if road.noise_std > 0:
         rng = rng or np.random.default_rng(0)
-        img = np.clip(img + rng.normal(0.0, road.noise_std, img.shape), 0, 255).astype(np.uint8)
+        noise = rng.standard_normal(img.shape, dtype=np.float32) * np.float32(road.noise_std)
+        img = np.clip(img + noise, 0, 255).astype(np.uint8)
     return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
 
 

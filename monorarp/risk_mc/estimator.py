@@ -183,7 +183,7 @@ class MonteCarloRisk:
         v_e = self._ego_speed(ego_speed)
         if not states:
             self.last_result = None
-            return RiskEstimate(risk=0.0, ttc={})
+            return RiskEstimate(risk=0.0, ttc={}, kind=self.score)
         ids = sorted(states)
         scene, params = self.build(states, v_e)
         lo, hi = self._lanes
@@ -197,4 +197,4 @@ class MonteCarloRisk:
             risk = float(np.mean(1.0 / t_hit))       # 1 / inf = 0 for rollouts without a collision
         med = np.median(conflict, axis=0)
         ttc = {tid: (float(m) if np.isfinite(m) else None) for tid, m in zip(ids, med)}
-        return RiskEstimate(risk=risk, ttc=ttc)
+        return RiskEstimate(risk=risk, ttc=ttc, kind=self.score)
