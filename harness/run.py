@@ -166,9 +166,10 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
         def annotate_result(res: FrameResult) -> None:
             image = images.pop(res.index)
             if annotated is not None:
-                boxes = [o["box"] for o in truths[res.index]["objects"]]
-                annotated.write(draw_frame(image, res, warning_s=eval_config.warning_threshold_s,
-                                           ego_speed=truths[res.index]["ego"]["speed"], truth_boxes=boxes))
+                truth = truths[res.index]
+                speed = res.ego_speed if res.ego_speed is not None else truth["ego"]["speed"]  # estimate, else true
+                annotated.write(draw_frame(image, res, warning_s=eval_config.warning_threshold_s, ego_speed=speed,
+                                           truth_boxes=[o["box"] for o in truth["objects"]]))
 
         runner = run_threaded if threaded else run_sync
         pipeline.reset()

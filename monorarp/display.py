@@ -5,7 +5,8 @@ warning threshold, orange below twice it, yellow for any other TTC within the
 horizon, green when not on a collision course), its id, ``d_x``/``d_y`` (m) and
 TTC (s); a vertical risk gauge (risk = max 1/TTC, 1/s) at the right edge; and a
 header with frame index, frame time, pipeline time per frame and, when known,
-the ego speed. Inputs are never modified unless ``copy=False``.
+the ego speed. Inputs are never modified unless ``copy=False``. The gauge reads ``result.risk.kind``: ``"inverse_ttc"`` (1/s) or
+``"probability"`` (0..1).
 """
 
 from __future__ import annotations
@@ -46,8 +47,16 @@ def _text(img: np.ndarray, text: str, org: tuple[int, int], scale: float, colour
     return th + base + 2
 
 
-def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warning_s: float = 2.0) -> None:
-    """Vertical gauge at the right edge: fill = risk / full_scale (1/s), tick at 1 / warning_s."""
+def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warning_s: float = 2.0,
+                    kind: str = "inverse_ttc") -> None:
+    """Vertical gauge at the right edge: fill = risk / full_scale.
+
+    ``kind="inverse_ttc"``: risk in 1/s, red tick at 1 / warning_s. ``"probability"``:
+    risk in [0, 1] on a full scale of 1, coloured green/yellow/orange/red by quarters.
+    """
+    probability = kind == "probability"
+    if probability:
+        full_scale = 1.0
     h, w = img.shape[:2]
     gw = max(6, w // 60)
     x2, x1 = w - 4, w - 4 - gw
@@ -55,18 +64,21 @@ def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warni
     frac = float(np.clip(risk / full_scale, 0.0, 1.0)) if full_scale > 0 else 0.0
     cv2.rectangle(img, (x1, y1), (x2, y2), (40, 40, 40), -1)
     fill_top = int(round(y2 - frac * (y2 - y1)))
-    colour = ttc_colour(1.0 / risk if risk > 0 else None, warning_s)
+    if probability:
+        colour = (GREEN, YELLOW, ORANGE, RED)[min(3, int(frac * 4))]
+    else:
+        colour = ttc_colour(1.0 / risk if risk > 0 else None, warning_s)
     if frac > 0:
         cv2.rectangle(img, (x1, fill_top), (x2, y2), colour, -1)
     cv2.rectangle(img, (x1, y1), (x2, y2), WHITE, 1)
     tick = 1.0 / warning_s / full_scale
-    if 0 < tick <= 1:
+    if not probability and 0 < tick <= 1:
         ty = int(round(y2 - tick * (y2 - y1)))
         cv2.line(img, (x1 - 3, ty), (x2, ty), RED, 1)
     scale = max(0.3, h / 900)
     (tw, _), _ = cv2.getTextSize("risk", FONT, scale, 1)
     _text(img, "risk", (x2 - tw - 2, y1 - int(22 * scale) - 4), scale, WHITE)
-    _text(img, f"{risk:.2f}/s", (x1 - 60, y2 + 3), scale, colour)
+    _text(img, f"P={risk:.2f}" if probability else f"{risk:.2f}/s", (x1 - 60, y2 + 3), scale, colour)
 
 
 def draw_frame(image: np.ndarray, result: FrameResult, *, warning_s: float = 2.0, risk_full_scale: float = 1.0,
@@ -108,5 +120,5 @@ def draw_frame(image: np.ndarray, result: FrameResult, *, warning_s: float = 2.0
     y = 2
     for text in header:
         y += _text(img, text, (2, y), scale, WHITE)
-    draw_risk_gauge(img, float(result.risk.risk), risk_full_scale, warning_s)
+    draw_risk_gauge(img, float(result.risk.risk), risk_full_scale, warning_s, getattr(result.risk, "kind", "inverse_ttc"))
     return img

@@ -53,10 +53,13 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def shrink_quads(quads: np.ndarray, d: float) -> tuple[np.ndarray, np.ndarray]:
-    """Move every edge of convex polygons (N, V, 2) inwards by ``d``.
+    """Undo the growth of cv2.fillConvexPoly's inclusive scan conversion on convex polygons (N, V, 2).
 
-    Returns the new polygons and a mask of those still convex with the same
-    orientation (thinner than ``2 d`` ones turn inside out and must be dropped).
+    The fill covers each scanline from round(x_left) to round(x_right) inclusive and
+    rows from round(y_top) to round(y_bottom): it grows a polygon by ``d`` = half a
+    pixel horizontally at its sides and vertically at horizontal edges. Each edge
+    line is moved back inwards by that much. Returns the polygons and a mask of
+    those that stay convex with the same orientation (thinner ones must be dropped).
     """
     e = np.roll(quads, -1, axis=1) - quads                         # edge i: vertex i -> i+1
     area2 = _cross(quads, np.roll(quads, -1, axis=1)).sum(axis=1)
@@ -64,7 +67,8 @@ def shrink_quads(quads: np.ndarray, d: float) -> tuple[np.ndarray, np.ndarray]:
     ok = (np.abs(area2) > 1e-9) & (length > 1e-9).all(axis=1)
     n = np.stack([-e[..., 1], e[..., 0]], axis=-1) * np.sign(area2)[:, None, None]
     n = n / np.where(length > 1e-9, length, 1.0)[..., None]
-    p = quads + d * n                                               # a point on each offset edge line
+    horizontal = np.abs(e[..., 1]) < 1e-9
+    p = quads + (d * np.where(horizontal, 1.0, np.abs(n[..., 0])))[..., None] * n   # on each moved edge line
     ea, pa = np.roll(e, 1, axis=1), np.roll(p, 1, axis=1)           # edge i-1 meets edge i at vertex i
     den = _cross(ea, e)
     ok &= (np.abs(den) > 1e-12).all(axis=1)

@@ -216,7 +216,7 @@ def test_wrong_image_size_is_a_user_error():
 
 
 def test_camera_seeing_no_ground_is_rejected():
-    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, np.radians(-10.0))   # pitched up: horizon near the bottom
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, np.radians(-21.0))   # pitched up: horizon 4 rows from the bottom
     with pytest.raises(EgoSpeedError):
         GroundTrackEgoSpeed(cam)
 

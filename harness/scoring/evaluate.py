@@ -22,8 +22,6 @@ Rules (all configurable in :class:`EvalConfig`):
 
 from __future__ import annotations
 
-import json
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -31,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from harness.output import to_jsonable, write_json_atomic
 from harness.scoring import algo
 from harness.scoring.match import MIN_IOU, as_boxes, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
@@ -157,7 +156,8 @@ def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[Fram
                    [t.box for t in res.tracks], frame=int(truth["frame"]))
     detection = algo.precision_recall(tp, n_pred, n_true)
     detection["min_iou"] = cfg.min_iou
-    m = mot.compute()
+    # Undefined ratios (e.g. MOTA with no counted object is -inf in motmetrics) become nan -> null.
+    m = {k: (v if np.isfinite(v) else NAN) for k, v in mot.compute().items()}
     tracking = {"mota": m["mota"], "motp": m["motp"], "idf1": m["idf1"], "idp": m["idp"], "idr": m["idr"],
                 "id_switches": int(m["num_switches"]), "false_positives": int(m["num_false_positives"]),
                 "misses": int(m["num_misses"]), "objects": int(m["num_objects"]),
@@ -217,18 +217,9 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
 
 def jsonable(obj: Any) -> Any:
     """Nested dicts/lists with numpy scalars -> plain JSON types; NaN/inf -> None."""
-    if isinstance(obj, Mapping):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
+    return to_jsonable(obj)
 
 
 def write_metrics(metrics: Mapping, path: str | Path) -> None:
-    Path(path).write_text(json.dumps(jsonable(metrics), indent=2, allow_nan=False) + "\n")
+    """Strict JSON (NaN -> null), written atomically."""
+    write_json_atomic(path, metrics, indent=2)

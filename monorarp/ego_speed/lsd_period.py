@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from monorarp.camera import CameraModel
-from monorarp.ego_speed.geometry import EgoSpeedError, row_distance, row_of_distance, row_scale
+from monorarp.ego_speed.geometry import EgoSpeedError, row_of_distance, row_scale
 from monorarp.ego_speed.ground_track import check_image, check_markings
 from monorarp.registry import register
 

@@ -1,0 +1,1 @@
+"""Benchmarks of component alternatives on identical inputs (``monorarp bench ...``)."""

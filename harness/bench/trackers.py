@@ -1,0 +1,323 @@
+"""Tracker benchmark: the paper's Table III (tracker runtime) with tracking accuracy added.
+
+Every tracker sees identical frames and identical detections:
+
+1. each scenario is simulated and rendered once (:func:`harness.run.rendered_frames`);
+   its frames (made read-only) and ground truths are kept in memory;
+2. the detector runs once per frame; its detections and its time are cached;
+3. each tracker then runs over the cached frames and detections, followed by
+   the same state estimator and risk estimator (fresh instances per tracker),
+   and the run is scored by :func:`harness.scoring.evaluate.evaluate`.
+
+Per tracker: tracker-only ms per frame (mean, p95; ``time.perf_counter``),
+the shared detector ms, MOTA, IDF1, ID switches (motmetrics, pooled over the
+scenarios) and the downstream distance error (median relative |d_y - d_long| /
+d_long of counted matched object-frames within 0-80 m, pooled the same way).
+"""
+
+from __future__ import annotations
+
+import inspect
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from harness.scenario import Scenario, load_scenario
+from harness.scoring.evaluate import EvalConfig, evaluate, state_metrics
+from harness.scoring.records import ObjectRecord
+from monorarp.camera import CameraModel
+from monorarp.errors import UserError
+from monorarp.pipeline import ComponentConfig, PipelineConfig
+from monorarp.registry import get_factory
+from monorarp.types import Detection, Frame, FrameResult
+
+DEFAULT_TRACKERS = ("particle", "kcf", "csrt", "mosse", "medianflow", "sort", "bytetrack")
+DEFAULT_SCENARIOS = ("scenarios/highway_cruise.yaml", "scenarios/cut_in.yaml")
+DEFAULT_FRAMES = 90
+DEFAULT_DETECTOR = "centernet"
+JSON_NAME, MD_NAME = "trackers.json", "trackers.md"
+OUTPUT_NAMES = (JSON_NAME, MD_NAME)
+#: The paper's Table III (s per frame): KCF alone; FasterRCNN detector + particle tracker.
+PAPER_TABLE_III_S = {"kcf": 0.5010, "detector": 0.1319, "particle": 0.0050}
+
+
+class BenchError(UserError, ValueError):
+    """A benchmark request that cannot be run (no trackers, no scenarios, bad frame count)."""
+
+
+# ------------------------------------------------------------------------------------ inputs
+@dataclass
+class CachedSequence:
+    """One scenario rendered and detected once: what every tracker is given."""
+
+    name: str
+    camera: CameraModel
+    frames: list[Frame]
+    truths: list[dict]
+    detections: list[tuple[Detection, ...]]
+    detector_ms: np.ndarray
+
+
+def check_trackers(names: Sequence[str]) -> list[str]:
+    """The tracker names, each checked against the registry (raises ``UnknownComponentError``)."""
+    names = [n.strip() for n in names if n.strip()]
+    if not names:
+        raise BenchError("no trackers given")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise BenchError(f"tracker listed twice: {', '.join(dup)}")
+    for n in names:
+        get_factory("tracker", n)
+    return names
+
+
+def build_component(kind: str, comp: ComponentConfig, camera: CameraModel) -> Any:
+    """Instantiate a registered component, passing ``camera`` to factories that take one."""
+    factory = get_factory(kind, comp.name)
+    kwargs = dict(comp.kwargs)
+    try:
+        takes_camera = "camera" in inspect.signature(factory).parameters
+    except (TypeError, ValueError):
+        takes_camera = False
+    if takes_camera and "camera" not in kwargs:
+        kwargs["camera"] = camera
+    return factory(**kwargs)
+
+
+def build_detector(detector: ComponentConfig, camera: CameraModel) -> Any:
+    """A detector by registry name, ``.onnx`` path or ``"oracle"`` (as ``monorarp run`` builds it)."""
+    from harness.run import build_pipeline
+
+    return build_pipeline(PipelineConfig(detector=detector), camera).detector
+
+
+def cache_sequence(scenario: Scenario, detector: Any, n_frames: int, name: str | None = None,
+                   log: Callable[[str], None] | None = None) -> CachedSequence:
+    """Render ``n_frames`` of ``scenario`` and run ``detector`` once on each frame (timed)."""
+    from harness.run import rendered_frames
+
+    if hasattr(detector, "reset"):
+        detector.reset()
+    set_truth = getattr(detector, "set_truth", None)       # the oracle detector reads the truth
+    frames, truths, dets, ms = [], [], [], []
+    for frame, truth in rendered_frames(scenario, n_frames):
+        frame.image.setflags(write=False)                  # no tracker may alter what the next one sees
+        if set_truth is not None:
+            set_truth(truth, frame.image)
+        t0 = time.perf_counter()
+        d = tuple(detector.detect(frame.image))
+        ms.append((time.perf_counter() - t0) * 1e3)
+        frames.append(frame)
+        truths.append(truth)
+        dets.append(d)
+    if log:
+        log(f"{name or scenario.name}: {len(frames)} frames rendered, detector {np.mean(ms) if ms else float('nan'):.2f} ms/frame")
+    return CachedSequence(name=name or scenario.name, camera=scenario.camera.model(), frames=frames,
+                          truths=truths, detections=dets, detector_ms=np.asarray(ms, dtype=float))
+
+
+# ------------------------------------------------------------------------------------- one run
+@dataclass
+class TrackerRun:
+    """One tracker over one cached sequence."""
+
+    metrics: dict
+    records: list[ObjectRecord]
+    tracker_ms: np.ndarray
+
+
+def run_tracker(seq: CachedSequence, tracker: ComponentConfig, state: ComponentConfig, risk: ComponentConfig,
+                eval_config: EvalConfig = EvalConfig()) -> TrackerRun:
+    """Run ``tracker`` + ``state`` + ``risk`` (fresh instances) over the cached frames and detections; score."""
+    trk = build_component("tracker", tracker, seq.camera)
+    est = build_component("state", state, seq.camera)
+    rsk = build_component("risk", risk, seq.camera)
+    results: list[FrameResult] = []
+    tracker_ms = np.empty(len(seq.frames))
+    for k, (frame, dets, det_ms) in enumerate(zip(seq.frames, seq.detections, seq.detector_ms)):
+        t0 = time.perf_counter()
+        tracks = list(trk.update(frame.image, list(dets), frame.t))
+        t1 = time.perf_counter()
+        states = dict(est.update(tracks, frame.t))
+        t2 = time.perf_counter()
+        risk_est = rsk.assess(states, frame.t)
+        t3 = time.perf_counter()
+        tracker_ms[k] = (t1 - t0) * 1e3
+        results.append(FrameResult(index=frame.index, t=frame.t, detections=list(dets), tracks=tracks, states=states,
+                                   risk=risk_est, timings_ms={"detector": float(det_ms), "tracker": tracker_ms[k],
+                                                              "state": (t2 - t1) * 1e3, "risk": (t3 - t2) * 1e3}))
+    for r in results:
+        r.timings_ms["total"] = sum(r.timings_ms.values())
+    metrics, records = evaluate(seq.truths, results, eval_config,
+                                run_info={"scenario": seq.name, "components": {"tracker": tracker.name}})
+    return TrackerRun(metrics=metrics, records=records, tracker_ms=tracker_ms)
+
+
+# ------------------------------------------------------------------------------- aggregation
+def pooled_tracking(tracking: Sequence[Mapping]) -> dict[str, float | int]:
+    """MOTA, IDF1 and ID switches over several sequences from their per-sequence counts.
+
+    As motmetrics' "OVERALL" row: MOTA = 1 - (misses + FP + switches) / objects;
+    IDF1 = 2 IDTP / (objects + predictions), with IDTP = IDR x objects and
+    predictions = matches + FP = objects - misses + FP (each sequence's
+    ``tracking`` section of ``metrics.json``).
+    """
+    obj = sum(int(t["objects"]) for t in tracking)
+    fp = sum(int(t["false_positives"]) for t in tracking)
+    miss = sum(int(t["misses"]) for t in tracking)
+    sw = sum(int(t["id_switches"]) for t in tracking)
+    idtp = sum(float(t["idr"]) * int(t["objects"]) for t in tracking if int(t["objects"]) > 0)
+    preds = obj - miss + fp
+    return {"mota": 1.0 - (miss + fp + sw) / obj if obj else float("nan"),
+            "idf1": 2.0 * idtp / (obj + preds) if obj + preds else float("nan"),
+            "id_switches": sw, "false_positives": fp, "misses": miss, "objects": obj}
+
+
+def _ms_stats(x: np.ndarray) -> dict[str, float]:
+    return {"mean": float(np.mean(x)) if x.size else float("nan"),
+            "p95": float(np.percentile(x, 95)) if x.size else float("nan")}
+
+
+def _summary(runs: Sequence[TrackerRun], detector_ms: np.ndarray, cfg: EvalConfig) -> dict:
+    tr_ms = np.concatenate([r.tracker_ms for r in runs]) if runs else np.empty(0)
+    dist = state_metrics([rec for r in runs for rec in r.records], cfg)["distance"]
+    return {"tracker_ms": _ms_stats(tr_ms), "detector_ms": _ms_stats(detector_ms),
+            **pooled_tracking([r.metrics["tracking"] for r in runs]),
+            "distance_rel_err_median": dist["rel_err_median"], "distance_abs_err_median_m": dist["abs_err_median_m"],
+            "distance_pairs": dist["count"]}
+
+
+# ------------------------------------------------------------------------------------ the bench
+@dataclass
+class BenchConfig:
+    scenarios: Sequence[str | Path] = DEFAULT_SCENARIOS
+    trackers: Sequence[str] = DEFAULT_TRACKERS
+    detector: ComponentConfig = field(default_factory=lambda: ComponentConfig(name=DEFAULT_DETECTOR))
+    frames: int | None = DEFAULT_FRAMES    # per scenario, capped at its duration x fps; None: the whole scenario
+    state: ComponentConfig = field(default_factory=lambda: PipelineConfig.model_fields["state"].default)
+    risk: ComponentConfig = field(default_factory=lambda: PipelineConfig.model_fields["risk"].default)
+    eval: EvalConfig = EvalConfig()
+
+
+def _load_scenarios(paths: Sequence[str | Path]) -> list[tuple[str, Scenario]]:
+    if not paths:
+        raise BenchError("no scenarios given")
+    out: list[tuple[str, Scenario]] = []
+    for p in paths:
+        sc = p if isinstance(p, Scenario) else load_scenario(p)
+        name, k = sc.name, 2
+        while name in {n for n, _ in out}:
+            name, k = f"{sc.name}#{k}", k + 1
+        out.append((name, sc))
+    return out
+
+
+def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], None] | None = None) -> dict:
+    """Run the benchmark; returns the JSON-ready result (NaN kept; see :func:`write_outputs`).
+
+    Every tracker name, every scenario and the detector are checked before anything is rendered.
+    """
+    trackers = check_trackers(config.trackers)
+    if config.frames is not None and config.frames <= 0:
+        raise BenchError(f"frames must be a positive integer, got {config.frames}")
+    scenarios = _load_scenarios(config.scenarios)
+    for kind, comp in (("state", config.state), ("risk", config.risk)):
+        get_factory(kind, comp.name)
+    detectors = [build_detector(config.detector, sc.camera.model()) for _, sc in scenarios]
+
+    per_tracker: dict[str, list[TrackerRun]] = {t: [] for t in trackers}
+    per_scenario: dict[str, dict] = {}
+    det_ms: list[np.ndarray] = []
+    for (name, sc), detector in zip(scenarios, detectors):
+        n = sc.n_frames if config.frames is None else min(int(config.frames), sc.n_frames)
+        seq = cache_sequence(sc, detector, n, name=name, log=log)
+        det_ms.append(seq.detector_ms)
+        per_scenario[name] = {"frames": len(seq.frames), "detector_ms": _ms_stats(seq.detector_ms),
+                              "detections": int(sum(len(d) for d in seq.detections)), "trackers": {}}
+        for t in trackers:
+            run = run_tracker(seq, ComponentConfig(name=t), config.state, config.risk, config.eval)
+            per_tracker[t].append(run)
+            per_scenario[name]["trackers"][t] = _summary([run], seq.detector_ms, config.eval)
+            if log:
+                s = per_scenario[name]["trackers"][t]
+                log(f"  {t:<11} {s['tracker_ms']['mean']:8.2f} ms  MOTA {s['mota']:.3f}  IDF1 {s['idf1']:.3f}")
+        del seq
+    all_det_ms = np.concatenate(det_ms) if det_ms else np.empty(0)
+    return {
+        "config": {"scenarios": [str(p) for p in config.scenarios], "scenario_names": [n for n, _ in scenarios],
+                   "frames_per_scenario": {n: v["frames"] for n, v in per_scenario.items()},
+                   "detector": config.detector.model_dump(), "trackers": trackers,
+                   "state": config.state.model_dump(), "risk": config.risk.model_dump(), "scoring": asdict(config.eval)},
+        "detector_ms": _ms_stats(all_det_ms),
+        "trackers": {t: _summary(per_tracker[t], all_det_ms, config.eval) for t in trackers},
+        "per_scenario": per_scenario,
+        "paper_table_iii_s": PAPER_TABLE_III_S,
+    }
+
+
+# --------------------------------------------------------------------------------------- tables
+def _f(v, fmt: str) -> str:
+    return "-" if v is None or v != v else fmt.format(v)
+
+
+def table_iii(result: Mapping) -> str:
+    """The paper's Table III with accuracy added, as a Markdown table (also readable as plain text)."""
+    head = ("| Tracker | tracker ms/frame (mean) | tracker ms (p95) | detector ms/frame | detector + tracker (s) "
+            "| MOTA | IDF1 | ID switches | distance error (median) |")
+    lines = ["TABLE III: Tracker runtime and accuracy (identical frames and detections)", "", head,
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, s in result["trackers"].items():
+        tm, dm = s["tracker_ms"]["mean"], s["detector_ms"]["mean"]
+        total = None if tm is None or dm is None else (tm + dm) / 1e3
+        lines.append(f"| {name} | {_f(tm, '{:.3f}')} | {_f(s['tracker_ms']['p95'], '{:.3f}')} | {_f(dm, '{:.3f}')} "
+                     f"| {_f(total, '{:.4f}')} | {_f(s['mota'], '{:.3f}')} | {_f(s['idf1'], '{:.3f}')} "
+                     f"| {s['id_switches']} | {_f(None if s['distance_rel_err_median'] is None else 100 * s['distance_rel_err_median'], '{:.2f} %')} |")
+    p = result.get("paper_table_iii_s", PAPER_TABLE_III_S)
+    cfg = result["config"]
+    frames = ", ".join(f"{n}: {k}" for n, k in cfg["frames_per_scenario"].items())
+    lines += ["", f"Paper (FasterRCNN, GTX 1070, 1080p): KCF tracker {p['kcf']:.4f} s; object detector + particle "
+                  f"tracker {p['detector']:.4f} + {p['particle']:.4f} s. No accuracy: the paper had no ground truth.",
+              f"Detector: {cfg['detector']['name']}; frames: {frames}. MOTA/IDF1/ID switches: motmetrics, IoU >= "
+              f"{cfg['scoring']['min_iou']:g}, pooled over scenarios. Distance error: median |d_y - d_long| / d_long "
+              f"({cfg['state']['name']} state estimator) over matched counted objects within 0-80 m."]
+    per = result.get("per_scenario", {})
+    if len(per) > 1:
+        lines += ["", "Per scenario:", "", "| Scenario | Tracker | tracker ms (mean) | MOTA | IDF1 | ID switches "
+                  "| distance error (median) |", "|---|---|---:|---:|---:|---:|---:|"]
+        for sc, v in per.items():
+            for name, s in v["trackers"].items():
+                d = s["distance_rel_err_median"]
+                lines.append(f"| {sc} | {name} | {_f(s['tracker_ms']['mean'], '{:.3f}')} | {_f(s['mota'], '{:.3f}')} "
+                             f"| {_f(s['idf1'], '{:.3f}')} | {s['id_switches']} | "
+                             f"{_f(None if d is None else 100 * d, '{:.2f} %')} |")
+    return "\n".join(lines)
+
+
+def run_bench(config: BenchConfig = BenchConfig(), out_dir: str | Path | None = None,
+              log: Callable[[str], None] | None = None) -> dict:
+    """:func:`bench_trackers`, then ``DIR/trackers.json`` and ``DIR/trackers.md``.
+
+    The output directory is checked before anything is rendered and replaced as
+    a whole only when the benchmark succeeded (nothing is left on failure).
+    """
+    check_trackers(config.trackers)              # the cheapest refusal first
+    if out_dir is None:
+        return bench_trackers(config, log)
+    from harness.output import atomic_output_dir, write_json_atomic
+    from harness.scoring.evaluate import jsonable
+
+    with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES) as tmp:
+        result = bench_trackers(config, log)
+        clean = jsonable(result)
+        write_json_atomic(tmp / JSON_NAME, clean)
+        (tmp / MD_NAME).write_text(table_iii(clean) + "\n")
+    return result
+
+
+def stderr_log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)

@@ -1,0 +1,72 @@
+"""``monorarp bench trackers``: the paper's Table III with accuracy, every tracker on identical frames and detections.
+
+Writes ``DIR/trackers.json`` and ``DIR/trackers.md`` (see :mod:`harness.bench.trackers`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from monorarp.errors import UserError
+
+
+def _split(values: list[str] | None) -> list[str]:
+    """``["a,b", "c"]`` -> ``["a", "b", "c"]``."""
+    return [v.strip() for item in values or [] for v in item.split(",") if v.strip()]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from harness.bench.trackers import DEFAULT_DETECTOR, DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
+
+    p = sub.add_parser("bench", help="benchmark component alternatives on identical frames",
+                       description="Benchmark component alternatives on identical simulated frames.")
+    bench_sub = p.add_subparsers(dest="bench_command", metavar="BENCHMARK")
+    t = bench_sub.add_parser(
+        "trackers", help="the paper's Table III: tracker runtime, with MOTA/IDF1/ID switches/distance error",
+        description="Render each scenario once, run the detector once per frame, then run every tracker (plus the "
+                    "same state and risk estimators) over the identical frames and detections and score it. Prints "
+                    "the paper's Table III with accuracy added and writes DIR/trackers.json and DIR/trackers.md.")
+    t.add_argument("--scenarios", nargs="+", default=None, metavar="SCENARIO.yaml",
+                   help=f"scenario files, space- or comma-separated (default: {','.join(DEFAULT_SCENARIOS)})")
+    t.add_argument("--trackers", nargs="+", default=None, metavar="NAME",
+                   help=f"registered trackers, space- or comma-separated (default: {','.join(DEFAULT_TRACKERS)})")
+    t.add_argument("--detector", default=DEFAULT_DETECTOR, metavar="NAME|PATH.onnx|oracle",
+                   help=f"registered detector, ONNX model file, or 'oracle' (ground-truth boxes); default: "
+                        f"{DEFAULT_DETECTOR}")
+    t.add_argument("--oracle-jitter", type=float, default=None, metavar="PX",
+                   help="oracle: Gaussian std (px) added to each box edge (default 0)")
+    t.add_argument("--oracle-miss-rate", type=float, default=None, metavar="R",
+                   help="oracle: probability of dropping each object (default 0)")
+    t.add_argument("--oracle-fp-rate", type=float, default=None, metavar="R",
+                   help="oracle: mean number of false boxes per frame (Poisson; default 0)")
+    t.add_argument("--frames", type=int, default=DEFAULT_FRAMES, metavar="N",
+                   help=f"frames per scenario, at most its duration x fps (default {DEFAULT_FRAMES})")
+    t.add_argument("--out", type=Path, default=Path("runs") / "bench-trackers", metavar="DIR",
+                   help="output directory (default: runs/bench-trackers; a previous benchmark there is replaced)")
+    t.set_defaults(func=run_trackers)
+    p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
+
+
+def run_trackers(args: argparse.Namespace) -> int:
+    from harness.bench.trackers import (DEFAULT_SCENARIOS, DEFAULT_TRACKERS, BenchConfig, run_bench, stderr_log,
+                                        table_iii)
+    from monorarp.pipeline import ComponentConfig
+
+    trackers = _split(args.trackers) if args.trackers is not None else list(DEFAULT_TRACKERS)
+    scenarios = _split(args.scenarios) if args.scenarios is not None else list(DEFAULT_SCENARIOS)
+    if args.frames is not None and args.frames <= 0:
+        raise UserError(f"--frames: must be a positive integer, got {args.frames}")
+    oracle_kw = {k: v for k, v in (("jitter_px", args.oracle_jitter), ("miss_rate", args.oracle_miss_rate),
+                                   ("false_positives", args.oracle_fp_rate)) if v is not None}
+    if oracle_kw and args.detector != "oracle":
+        raise UserError("--oracle-jitter/--oracle-miss-rate/--oracle-fp-rate need --detector oracle")
+    detector = args.detector
+    if detector.lower().endswith(".onnx"):
+        detector = str(Path(detector).expanduser())
+    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, detector=ComponentConfig(name=detector, kwargs=oracle_kw),
+                      frames=args.frames)
+    result = run_bench(cfg, out_dir=args.out, log=stderr_log)
+    print(table_iii(result))
+    print(f"\nwrote {args.out}/trackers.json and {args.out}/trackers.md")
+    return 0

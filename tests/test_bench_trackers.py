@@ -1,0 +1,152 @@
+"""`monorarp bench trackers` on a tiny scenario: identical inputs for every tracker, output structure, pooling."""
+
+from __future__ import annotations
+
+import json
+
+import motmetrics as mm
+import numpy as np
+import pytest
+import yaml
+
+import harness.run
+from harness.bench.trackers import pooled_tracking
+from harness.oracle import OracleDetector
+from monorarp import registry
+from monorarp.cli import main
+from monorarp.tracking import ParticleTracker
+
+N_FRAMES = 8
+SCENARIO = {
+    "name": "bench_test", "seed": 1, "duration_s": 1.0, "fps": 15,
+    "road": {"lanes": 3}, "traffic": {"vehicles_count": 0},
+    "ego": {"lane": 1, "speed_mps": 25},
+    "vehicles": [
+        {"name": "lead", "lane": 0, "distance_m": 14, "speed_mps": 22, "behaviour": "constant_speed"},
+        {"name": "left", "lane": -1, "distance_m": 20, "speed_mps": 26, "behaviour": "constant_speed"},
+    ],
+    "camera": {"width": 320, "height": 180},
+}
+
+
+class Recording(ParticleTracker):
+    """The particle tracker, recording what it is fed."""
+
+    log: dict[str, list] = {}
+
+    def __init__(self, tag: str) -> None:
+        super().__init__()
+        self.tag = tag
+        Recording.log[tag] = []
+
+    def update(self, image, detections, t):
+        Recording.log[self.tag].append((id(image), image.copy(), tuple(detections), t))
+        return super().update(image, detections, t)
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    base = tmp_path_factory.mktemp("bench")
+    scen = base / "tiny.yaml"
+    scen.write_text(yaml.safe_dump(SCENARIO))
+    calls: list[tuple] = []
+    real_detect = OracleDetector.detect
+
+    def counting_detect(self, image):
+        out = real_detect(self, image)
+        calls.append((id(image), tuple(out)))
+        return out
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(OracleDetector, "detect", counting_detect)
+    mp.setitem(registry._REGISTRY["tracker"], "rec_a", lambda: Recording("a"))
+    mp.setitem(registry._REGISTRY["tracker"], "rec_b", lambda: Recording("b"))
+    out = base / "out"
+    try:
+        rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "particle,kcf", "rec_a,rec_b",
+                   "--detector", "oracle", "--frames", str(N_FRAMES), "--out", str(out)])
+    finally:
+        mp.undo()
+    return rc, out, calls
+
+
+def test_identical_frames_and_detections(bench):
+    rc, _, calls = bench
+    assert rc == 0
+    assert len(calls) == N_FRAMES                                       # the detector ran once per frame
+    a, b = Recording.log["a"], Recording.log["b"]
+    assert len(a) == len(b) == N_FRAMES
+    for (ia, ima, da, ta), (ib, imb, db, tb), (ic, dc) in zip(a, b, calls):
+        assert ia == ib == ic                                           # the very same image object
+        np.testing.assert_array_equal(ima, imb)                        # and unchanged by the trackers before
+        assert da == db == dc and ta == tb                              # the oracle's detections, as cached
+    assert sum(len(d) for _, d in calls) > 0
+
+
+def test_output_files(bench, capsys):
+    _, out, _ = bench
+    assert sorted(p.name for p in out.iterdir()) == ["trackers.json", "trackers.md"]
+    res = json.loads((out / "trackers.json").read_text())
+    assert list(res["trackers"]) == ["particle", "kcf", "rec_a", "rec_b"]
+    assert res["config"]["detector"]["name"] == "oracle"
+    assert res["config"]["frames_per_scenario"] == {"bench_test": N_FRAMES}
+    for name, s in res["trackers"].items():
+        assert set(s) >= {"tracker_ms", "detector_ms", "mota", "idf1", "id_switches", "distance_rel_err_median"}
+        assert s["tracker_ms"]["mean"] > 0 and s["tracker_ms"]["p95"] >= 0
+        assert s["detector_ms"] == res["detector_ms"]                   # one shared detector figure
+        assert isinstance(s["id_switches"], int)
+    # noise-free oracle boxes: the detection-driven trackers are perfect, the distance error small
+    for name in ("particle", "rec_a"):
+        s = res["trackers"][name]
+        assert s["mota"] == pytest.approx(1.0) and s["idf1"] == pytest.approx(1.0) and s["id_switches"] == 0
+        assert 0 <= s["distance_rel_err_median"] < 0.05
+    for key in ("mota", "idf1", "id_switches", "distance_rel_err_median"):   # same tracker, same inputs
+        assert res["trackers"]["rec_a"][key] == res["trackers"]["particle"][key]
+    assert res["per_scenario"]["bench_test"]["trackers"]["kcf"]["mota"] is not None
+    md = (out / "trackers.md").read_text()
+    assert "TABLE III" in md and "| MOTA |" in md
+    assert all(f"| {n} |" in md for n in res["trackers"])
+
+
+def test_unknown_tracker_refused_before_rendering(tmp_path, monkeypatch, capsys):
+    def no_render(*a, **k):
+        raise AssertionError("rendered")
+
+    monkeypatch.setattr(harness.run, "rendered_frames", no_render)
+    scen = tmp_path / "tiny.yaml"
+    scen.write_text(yaml.safe_dump(SCENARIO))
+    rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "particle,boosting",
+               "--detector", "oracle", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "unknown tracker 'boosting'" in err[0]
+    assert not (tmp_path / "out").exists()
+    rc = main(["bench", "trackers", "--scenarios", str(tmp_path / "missing.yaml"), "--trackers", "sort",
+               "--detector", "oracle", "--out", str(tmp_path / "out")])
+    assert rc == 2 and "missing.yaml" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_pooled_tracking_matches_motmetrics_overall():
+    """Pooling per-sequence counts gives motmetrics' own OVERALL MOTA and IDF1."""
+    rng = np.random.default_rng(0)
+    accs = []
+    for _ in range(3):
+        acc = mm.MOTAccumulator(auto_id=True)
+        for _ in range(30):
+            gt = [i for i in range(4) if rng.random() > 0.1]
+            hyp = [int(rng.integers(0, 6)) for _ in range(int(rng.integers(1, 5)))]
+            hyp = list(dict.fromkeys(hyp))
+            dist = rng.uniform(0, 1, (len(gt), len(hyp)))
+            dist[dist > 0.6] = np.nan
+            acc.update(gt, hyp, dist)
+        accs.append(acc)
+    mh = mm.metrics.create()
+    names = ["mota", "idf1", "idr", "num_switches", "num_false_positives", "num_misses", "num_objects"]
+    df = mh.compute_many(accs, metrics=names, names=["a", "b", "c"], generate_overall=True)
+    per = [{"objects": df.loc[n, "num_objects"], "false_positives": df.loc[n, "num_false_positives"],
+            "misses": df.loc[n, "num_misses"], "id_switches": df.loc[n, "num_switches"], "idr": df.loc[n, "idr"]}
+           for n in "abc"]
+    pooled = pooled_tracking(per)
+    assert pooled["mota"] == pytest.approx(df.loc["OVERALL", "mota"], abs=1e-12)
+    assert pooled["idf1"] == pytest.approx(df.loc["OVERALL", "idf1"], abs=1e-12)
+    assert pooled["id_switches"] == df.loc["OVERALL", "num_switches"]
