@@ -187,7 +187,8 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
                 annotate_result(res)
 
         ordered = [truths[r.index] for r in results]
-        metrics, records = evaluate(ordered, results, eval_config, wall_time_s=wall, run_info=run_info)
+        metrics, records = evaluate(ordered, results, eval_config, wall_time_s=wall, run_info=run_info,
+                                    camera=camera)
         if tmp:
             write_metrics(metrics, tmp / METRICS_NAME)
             write_csv(records, tmp / PER_OBJECT_NAME)

@@ -14,6 +14,7 @@ from harness.scoring.evaluate import EvalConfig, evaluate, jsonable, write_metri
 from harness.scoring.match import iou_matrix, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import read_csv, write_csv
+from monorarp.camera import CameraModel
 from monorarp.types import Detection, FrameResult, ObjectState, RiskEstimate, Track
 
 
@@ -65,6 +66,31 @@ def test_split_ignored_drops_estimates_on_ignored_objects():
     kept, ignored = split_ignored(gt, [True, False], est)
     assert [(g, e) for g, e, _ in kept] == [(0, 0)]
     assert ignored.tolist() == [False, True, False]
+
+
+def test_split_ignored_cover_and_range_rules():
+    gt = [(0, 0, 10, 10), (40, 0, 44, 10)]          # object 1 is only a sliver now (ignored)
+    est = [(1, 0, 11, 10),                          # matches counted object 0
+           (36, 0, 56, 10),                         # coasting on the whole of object 1: IoU 0.2, covers it all
+           (100, 0, 110, 10),                       # far from everything
+           (-2, 0, 9, 10)]                          # near counted object 0 (IoU >= 0.5) but lost the assignment
+    _, plain = split_ignored(gt, [True, False], est)
+    assert plain.tolist() == [False, False, False, False]
+    kept, aside = split_ignored(gt, [True, False], est, ignore_cover=0.5,
+                                est_out_of_range=[True, False, True, True])
+    assert [(g, e) for g, e, _ in kept] == [(0, 0)]
+    # est 1 covers the ignored sliver; est 2 is out of range; est 3 overlaps a counted object -> still a FP
+    assert aside.tolist() == [False, True, True, False]
+
+
+def test_range_filter_uses_the_camera_ground_distance():
+    from harness.scoring.evaluate import out_of_range
+
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, pitch_rad=math.radians(2))
+    rows = [cam.project_ego(np.array([0.0, d, -1.3]))[1] for d in (60.0, 79.0, 81.0, 300.0)]
+    boxes = [(300, v - 10, 340, v) for v in rows] + [(300, 10, 340, cam.horizon_row - 1)]
+    assert out_of_range(boxes, cam, 80.0).tolist() == [False, False, True, True, True]
+    assert out_of_range(boxes, None, 80.0) is None
 
 
 # --------------------------------------------------------------------- maths

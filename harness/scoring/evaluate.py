@@ -7,8 +7,14 @@ Rules (all configurable in :class:`EvalConfig`):
 * **Counted objects**: a GT object counts when its visibility is at least
   ``min_visibility`` (0.3) and its ``d_long`` at most ``max_range_m`` (80 m, the
   last range bin). Other objects are *ignored*: missing them is no error, and a
-  track or detection matching one is dropped from that frame (not a false
-  positive). Detection and tracking (MOT) metrics use this rule.
+  track or detection matching one (IoU >= ``min_iou``) is dropped from that
+  frame (not a false positive). So is a track or detection that matches no
+  counted object and either covers at least ``ignore_cover`` (0.5) of an
+  ignored object's visible box (a track coasting on the whole of a vehicle
+  that is now mostly hidden) or, when the camera is given, whose bottom edge
+  lies beyond ``max_range_m`` on the ground (or at/above the horizon): the
+  range filter nuScenes applies to predictions. Detection and tracking (MOT)
+  metrics use this rule; ``per_object.csv`` marks such rows ``set_aside``.
 * **State errors** (distance, lateral, velocity) over counted matched
   object-frames whose track has a state, with ``0 <= d_long < 80`` (the union
   of the range bins): ``d_long`` vs ``d_y``, ``d_lat`` vs ``d_x``, ``v_long`` vs
@@ -34,6 +40,7 @@ from harness.scoring import algo
 from harness.scoring.match import MIN_IOU, as_boxes, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import ObjectRecord
+from monorarp.camera import CameraModel
 from monorarp.types import FrameResult
 
 NAN = float("nan")
@@ -46,6 +53,7 @@ class EvalConfig:
     min_iou: float = MIN_IOU
     min_visibility: float = 0.3
     max_range_m: float = 80.0
+    ignore_cover: float | None = 0.5
 
 
 def _f(v) -> float:
@@ -58,7 +66,17 @@ def counted_mask(objects: Sequence[Mapping], cfg: EvalConfig) -> np.ndarray:
                     dtype=bool)
 
 
-def frame_records(truth: Mapping, result: FrameResult, cfg: EvalConfig) -> list[ObjectRecord]:
+def out_of_range(boxes: np.ndarray, camera: CameraModel | None, max_range_m: float) -> np.ndarray | None:
+    """Boxes whose bottom edge meets the ground beyond ``max_range_m`` (or never); None without a camera."""
+    if camera is None:
+        return None
+    b = as_boxes(boxes)
+    ground = camera.ground_point_from_pixel(np.full(len(b), camera.cx), b[:, 3])[:, 1]
+    return ~(ground <= max_range_m)
+
+
+def frame_records(truth: Mapping, result: FrameResult, cfg: EvalConfig,
+                  camera: CameraModel | None = None) -> list[ObjectRecord]:
     """Side-by-side records of one frame (see :mod:`harness.scoring.records`)."""
     objects = truth["objects"]
     counted = counted_mask(objects, cfg)
@@ -66,6 +84,8 @@ def frame_records(truth: Mapping, result: FrameResult, cfg: EvalConfig) -> list[
     gt_boxes = as_boxes([o["box"] for o in objects])
     tr_boxes = as_boxes([t.box for t in tracks])
     match = {g: (e, iou) for g, e, iou in match_boxes(gt_boxes, tr_boxes, cfg.min_iou)}
+    _, set_aside = split_ignored(gt_boxes, counted, tr_boxes, cfg.min_iou, cfg.ignore_cover,
+                                 out_of_range(tr_boxes, camera, cfg.max_range_m))
     frame, t = int(truth["frame"]), float(truth["t"])
     recs: list[ObjectRecord] = []
     used = set()
@@ -91,7 +111,7 @@ def frame_records(truth: Mapping, result: FrameResult, cfg: EvalConfig) -> list[
         recs.append(r)
     for e, tr in enumerate(tracks):
         if e not in used:
-            r = ObjectRecord(frame=frame, t=t)
+            r = ObjectRecord(frame=frame, t=t, set_aside=bool(set_aside[e]))
             fill_track(r, tr)
             recs.append(r)
     return recs
@@ -139,7 +159,7 @@ def frame_warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResu
 
 
 def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult],
-                               cfg: EvalConfig) -> tuple[dict, dict]:
+                               cfg: EvalConfig, camera: CameraModel | None = None) -> tuple[dict, dict]:
     """Detection precision/recall at ``min_iou`` and motmetrics tracking metrics."""
     mot = MotScorer(cfg.min_iou)
     tp = n_pred = n_true = 0
@@ -148,12 +168,15 @@ def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[Fram
         counted = counted_mask(objs, cfg)
         gt_boxes = as_boxes([o["box"] for o in objs])
         det_boxes = as_boxes([d.box for d in res.detections])
-        kept, ignored = split_ignored(gt_boxes, counted, det_boxes, cfg.min_iou)
+        kept, ignored = split_ignored(gt_boxes, counted, det_boxes, cfg.min_iou, cfg.ignore_cover,
+                                      out_of_range(det_boxes, camera, cfg.max_range_m))
         tp += len(kept)
         n_pred += int((~ignored).sum())
         n_true += int(counted.sum())
-        mot.update([o["id"] for o in objs], gt_boxes, counted, [t.id for t in res.tracks],
-                   [t.box for t in res.tracks], frame=int(truth["frame"]))
+        tr_boxes = as_boxes([t.box for t in res.tracks])
+        mot.update([o["id"] for o in objs], gt_boxes, counted, [t.id for t in res.tracks], tr_boxes,
+                   frame=int(truth["frame"]), ignore_cover=cfg.ignore_cover,
+                   track_out_of_range=out_of_range(tr_boxes, camera, cfg.max_range_m))
     detection = algo.precision_recall(tp, n_pred, n_true)
     detection["min_iou"] = cfg.min_iou
     # Undefined ratios (e.g. MOTA with no counted object is -inf in motmetrics) become nan -> null.
@@ -182,8 +205,11 @@ def runtime_metrics(results: Sequence[FrameResult], wall_time_s: float | None) -
 
 
 def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig = EvalConfig(),
-             wall_time_s: float | None = None, run_info: Mapping | None = None) -> tuple[dict, list[ObjectRecord]]:
+             wall_time_s: float | None = None, run_info: Mapping | None = None,
+             camera: CameraModel | None = None) -> tuple[dict, list[ObjectRecord]]:
     """Score a run. ``truths[i]`` and ``results[i]`` must describe the same frame.
+
+    ``camera`` (the one that rendered the frames) enables the range filter on predictions.
 
     Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`jsonable`.
     """
@@ -192,10 +218,10 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
     for tr, res in zip(truths, results):
         if int(tr["frame"]) != res.index:
             raise ValueError(f"truth frame {tr['frame']} paired with result frame {res.index}")
-    records = [r for tr, res in zip(truths, results) for r in frame_records(tr, res, cfg)]
+    records = [r for tr, res in zip(truths, results) for r in frame_records(tr, res, cfg, camera)]
     sm = state_metrics(records, cfg)
     sm["ttc"]["frame_warning"] = frame_warning_metrics(truths, results, cfg)
-    detection, tracking = detection_tracking_metrics(truths, results, cfg)
+    detection, tracking = detection_tracking_metrics(truths, results, cfg, camera)
     runtime, fps = runtime_metrics(results, wall_time_s)
     metrics = {
         "frames": len(results),
@@ -209,7 +235,7 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
                    "counted_object_frames": int(sum(r.counted for r in records if r.gt_id is not None)),
                    "track_frames": sum(len(r.tracks) for r in results),
                    "detections": sum(len(r.detections) for r in results), **sm["pairs"]},
-        "scoring": asdict(cfg),
+        "scoring": {**asdict(cfg), "range_filter_on_predictions": camera is not None},
         "config": dict(run_info or {}),
     }
     return metrics, records

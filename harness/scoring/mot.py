@@ -4,9 +4,11 @@ Counting rule: each frame's ground-truth objects are split into *counted*
 ones (by default visibility >= 0.3 and within the evaluation range; see
 :class:`harness.scoring.evaluate.EvalConfig`) and *ignored* ones. Tracks are
 first matched (Hungarian, IoU >= 0.5) against all objects; tracks matched to
-an ignored object are removed from that frame, and ignored objects are not
-given to the accumulator: they are neither misses nor false positives
-(MOTChallenge's distractor rule). Everything left goes to
+an ignored object are removed from that frame (MOTChallenge's distractor
+rule), and so are, optionally, tracks near no counted object that cover most
+of an ignored object's visible box or lie beyond the evaluation range
+(:func:`harness.scoring.match.split_ignored`). Ignored objects are not given
+to the accumulator: they are neither misses nor false positives. Everything left goes to
 ``motmetrics.MOTAccumulator`` with distance 1 - IoU (NaN below IoU 0.5),
 which does its own CLEAR-MOT matching with identity continuity.
 ``motp`` is therefore the mean (1 - IoU) of matched pairs (lower is better).
@@ -38,11 +40,16 @@ class MotScorer:
         self._frame = 0
 
     def update(self, gt_ids: Sequence[int], gt_boxes, counted: Sequence[bool],
-               track_ids: Sequence[int], track_boxes, frame: int | None = None) -> None:
-        """One frame: GT ids/boxes with their counted mask, track ids/boxes."""
+               track_ids: Sequence[int], track_boxes, frame: int | None = None,
+               ignore_cover: float | None = None, track_out_of_range: Sequence[bool] | None = None) -> None:
+        """One frame: GT ids/boxes with their counted mask, track ids/boxes.
+
+        ``ignore_cover``/``track_out_of_range``: see :func:`harness.scoring.match.split_ignored`.
+        """
         gt_boxes, track_boxes = as_boxes(gt_boxes), as_boxes(track_boxes)
         counted = np.asarray(counted, dtype=bool).reshape(-1)
-        _, ignored_tracks = split_ignored(gt_boxes, counted, track_boxes, self.min_iou)
+        _, ignored_tracks = split_ignored(gt_boxes, counted, track_boxes, self.min_iou, ignore_cover,
+                                          track_out_of_range)
         keep = ~ignored_tracks
         g_ids = [int(i) for i, c in zip(gt_ids, counted) if c]
         h_ids = [int(i) for i, k in zip(track_ids, keep) if k]

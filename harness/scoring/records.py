@@ -24,6 +24,7 @@ class ObjectRecord:
     track_id: int | None = None
     counted: bool = False        # GT object inside the scoring rule (visibility, range)
     matched: bool = False        # GT object and track matched (IoU >= min_iou)
+    set_aside: bool = False      # unmatched track not counted as a false positive (see evaluate)
     iou: float = NAN
     visibility: float = NAN
     coasting: bool | None = None

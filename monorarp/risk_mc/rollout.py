@@ -42,7 +42,7 @@ from typing import Literal
 import numpy as np
 
 from monorarp.risk_mc.drivers import DriverParams
-from monorarp.risk_mc.idm import idm_acceleration, mobil_decision, mobil_incentive
+from monorarp.risk_mc.idm import MIN_GAP_M, mobil_safe
 
 SPAN = 1.0e5          # lane code stride of the sort key; |x| stays far below this (m)
 
@@ -105,81 +105,95 @@ class RolloutResult:
 
 
 PHANTOM_X = 1.0e9    # position of the phantom "no leader" vehicle (m): its interaction term is ~1e-15
+MAX_VEHICLES = 61    # ego included: an int64 lane bitmask holds the ranks 1..N and two sentinel bits
 
 
-class _Links:
-    """Leader/follower structure of one relink (per sample, per lane); indices into (S, N+1) rows.
+class _Order:
+    """Vehicles sorted along the road, per sample, and lane-membership bitmasks over that order.
 
-    Column N of every state array is a phantom standing for "nobody": far ahead
-    as a leader, masked out as a follower.
+    Vehicle-major arrays: (N, S) per vehicle, (N+1, S) state with row N the phantom
+    ("nobody": far ahead as a leader, masked out as a follower). Ranks 1..N follow x
+    (stable sort: exact ties in x keep the vehicle-index order). Lane ``l`` of a sample is a
+    bitmask with bit ``rank`` set for every vehicle occupying it (current or target lane) and
+    the sentinel bits 0 and N+1 (the phantom behind / ahead of everybody). The leader of a
+    vehicle in a lane is the lowest set bit above its rank; the follower the highest below,
+    found as the lowest set bit of the mirrored mask (ranks N+1-rank).
     """
 
-    def __init__(self, cfg: RolloutConfig, x: np.ndarray, cur: np.ndarray, tgt: np.ndarray):
-        s, n = cur.shape
-        n_lanes = cfg.lane_max - cfg.lane_min + 1
-        code0 = cur - cfg.lane_min
-        code1 = np.where(tgt != cur, tgt - cfg.lane_min, n_lanes + np.arange(n))  # own lane = nobody else's
-        code = np.concatenate([code0, code1], axis=1)                       # (S, 2N) lane entries
-        xr = x[:, :n]
-        key = code * SPAN + np.concatenate([xr, xr], axis=1)
-        order = np.argsort(key, axis=1)
-        vid = order % n
-        code_s = np.take_along_axis(code, order, axis=1)
-        same = code_s[:, 1:] == code_s[:, :-1]
-        lead_s = np.full((s, 2 * n), n)
-        lead_s[:, :-1] = np.where(same, vid[:, 1:], n)
-        foll_s = np.full((s, 2 * n), n)
-        foll_s[:, 1:] = np.where(same, vid[:, :-1], n)
-        lead = np.empty_like(lead_s)
-        np.put_along_axis(lead, order, lead_s, axis=1)
-        foll = np.empty_like(foll_s)
-        np.put_along_axis(foll, order, foll_s, axis=1)
-        self.n = n
-        self.row = (np.arange(s) * (n + 1))[:, None]      # flat offset of each sample's row in (S, N+1)
-        self.leader = np.concatenate([lead[:, :n], np.full((s, 1), n)], axis=1)      # (S, N+1)
-        self.follower = np.concatenate([foll[:, :n], np.full((s, 1), n)], axis=1)
-        self.leader_flat = self.row + self.leader
-        # vehicles changing lane and their target-lane leader (flat indices)
-        chg_s, chg_i = np.nonzero(tgt != cur)
-        self.chg_flat = chg_s * (n + 1) + chg_i
-        self.chg_lead_flat = chg_s * (n + 1) + lead[:, n:][chg_s, chg_i]
-        self._order, self._code_s, self._vid, self._key = order, code_s, vid, key
-        self._n_codes = n_lanes + n
-        self._flat = None
+    def __init__(self, x: np.ndarray, lane_min: int, lane_max: int):
+        n, s = x.shape[0] - 1, x.shape[1]
+        if n > MAX_VEHICLES:
+            raise ValueError(f"at most {MAX_VEHICLES} vehicles (ego included) per rollout, got {n}")
+        order = np.argsort(x[:n], axis=0, kind="stable")
+        rank = np.empty((n, s), dtype=np.int64)
+        np.put_along_axis(rank, order, np.arange(1, n + 1)[:, None], axis=0)
+        mirror = (n + 1) - rank
+        self.n, self.s, self.lane_min = n, s, lane_min
+        self.n_lanes = lane_max - lane_min + 1
+        self.bit = np.left_shift(1, rank)
+        self.bit_m = np.left_shift(1, mirror)
+        self.above = ~(np.left_shift(2, rank) - 1)          # bits strictly above the rank
+        self.above_m = ~(np.left_shift(2, mirror) - 1)
+        pad = np.full((1, s), n)
+        self.order_flat = np.concatenate([pad, order, pad]).ravel()   # sorted position -> vehicle (N: phantom)
+        self.cols = np.arange(s)
+        self.sentinel = 1 | (1 << (n + 1))
 
-    def _build_search(self) -> None:
-        s = self._order.shape[0]
-        key_s = np.take_along_axis(self._key, self._order, axis=1)
-        lo = np.full((s, 1), -SPAN)                         # below every key of the row
-        hi = np.full((s, 1), (self._n_codes + 1) * SPAN)    # above every key of the row
-        self._band = (self._n_codes + 3) * SPAN
-        self._flat = (np.concatenate([lo, key_s, hi], axis=1) + (np.arange(s) * self._band)[:, None]).ravel()
-        n = self.n
-        self._vid_flat = np.concatenate([np.full((s, 1), n), self._vid, np.full((s, 1), n)], axis=1).ravel()
-        self._code_flat = np.concatenate([np.full((s, 1), -1), self._code_s, np.full((s, 1), -1)], axis=1).ravel()
+    def set_lanes(self, cur: np.ndarray, tgt: np.ndarray) -> None:
+        """Lane bitmasks from current / target lanes (N, S); rows 0 and n_lanes+1 are empty lanes."""
+        lanes = np.arange(self.lane_min, self.lane_min + self.n_lanes)[:, None, None]
+        occ = (cur == lanes) | (tgt == lanes)                                # (L, N, S)
+        masks = np.full((2, self.n_lanes + 2, self.s), self.sentinel, dtype=np.int64)
+        masks[0, 1:-1] |= np.where(occ, self.bit, 0).sum(axis=1)
+        masks[1, 1:-1] |= np.where(occ, self.bit_m, 0).sum(axis=1)
+        self._masks = masks.reshape(2, -1)
 
-    def neighbours_in_lane(self, s_idx: np.ndarray, lane_code: np.ndarray, x: np.ndarray):
-        """Leader (first at or ahead of ``x``) and follower (last behind) in lane ``lane_code`` of sample ``s_idx``.
+    def _index(self, lane: np.ndarray) -> np.ndarray:
+        code = np.clip(lane - (self.lane_min - 1), 0, self.n_lanes + 1)     # out-of-range lanes: empty
+        return code * self.s + self.cols
 
-        1-D query arrays; vehicle indices, ``N`` (the phantom) where there is none. Ties count as
-        leader, as in highway-env. One ``searchsorted`` for all samples: rows live in disjoint key bands.
-        """
-        if self._flat is None:
-            self._build_search()
-        pos = np.searchsorted(self._flat, lane_code * SPAN + x + s_idx * self._band, side="left")
-        lead, foll = self._vid_flat[pos], self._vid_flat[pos - 1]   # sentinels keep pos-1 in the row
-        n = self.n
-        return (np.where(self._code_flat[pos] == lane_code, lead, n),
-                np.where(self._code_flat[pos - 1] == lane_code, foll, n))
+    def leaders(self, lane: np.ndarray) -> np.ndarray:
+        """Vehicle index of the first occupant of ``lane`` (.., N, S) ahead of each vehicle (N: none)."""
+        hi = np.take(self._masks[0], self._index(lane)) & self.above
+        low = hi & -hi
+        pos = np.bitwise_count(low - 1).astype(np.int64)
+        return np.take(self.order_flat, pos * self.s + self.cols)
+
+    def followers(self, lane: np.ndarray) -> np.ndarray:
+        """Vehicle index of the last occupant of ``lane`` (.., N, S) behind each vehicle (N: none)."""
+        hi = np.take(self._masks[1], self._index(lane)) & self.above_m
+        low = hi & -hi
+        pos = (self.n + 1) - np.bitwise_count(low - 1).astype(np.int64)
+        return np.take(self.order_flat, pos * self.s + self.cols)
+
+
+def _flat(ids: np.ndarray, s: int) -> np.ndarray:
+    """Flat indices into (N+1, S) state arrays of vehicle indices ``ids`` (.., N, S)."""
+    return ids * s + np.arange(s)
+
+
+def _idm(v, a, afree, T, c, s0, dv, gap, floor_s_star: bool) -> np.ndarray:
+    """IDM with precomputed ``afree = a (1 - (v/v0)^delta)`` and ``c = 1 / (2 sqrt(a b))`` (see :mod:`idm`)."""
+    dyn = dv * c
+    dyn += T
+    dyn *= v
+    if floor_s_star:
+        np.maximum(dyn, 0.0, out=dyn)
+    dyn += s0
+    dyn /= np.maximum(gap, MIN_GAP_M)
+    dyn *= dyn
+    dyn *= a
+    return np.subtract(afree, dyn, out=dyn)
 
 
 def _pad(a: np.ndarray, value: float, dtype=float) -> np.ndarray:
-    return np.concatenate([np.asarray(a, dtype=dtype), np.full((a.shape[0], 1), value, dtype=dtype)], axis=1)
+    """(S, N) -> vehicle-major (N+1, S) with a phantom row ``value``."""
+    a = np.asarray(a, dtype=dtype)
+    return np.concatenate([a.T, np.full((1, a.shape[0]), value, dtype=dtype)])
 
 
-# Largest (S, 2N) block simulated at once. numpy temporaries above glibc's 128 KiB mmap threshold
-# are mapped and page-faulted afresh on every operation (measured: 10-25x slower per element), so
-# the samples are simulated in chunks whose arrays stay below it; rollouts are independent.
+# Largest (S, 2N) block simulated at once (rollouts are independent, so chunking does not change results).
+# Keeps the temporaries of a step cache-sized; measured: 500 x 11 in one block is fastest.
 _MAX_ELEMS = 12_000
 
 
@@ -206,177 +220,217 @@ def simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: boo
 _PARAM_FIELDS = ("v0", "T", "s0", "a", "b", "politeness", "threshold", "b_safe")
 
 
+class _Drivers:
+    """Vehicle-major driver parameters in the state dtype: (N, S), ``inv_v0`` (N+1, S) with the phantom's 0."""
+
+    def __init__(self, params: DriverParams, f: np.dtype):
+        g = lambda k: np.ascontiguousarray(np.asarray(getattr(params, k), dtype=float).T)  # noqa: E731
+        self.inv_v0 = _pad(1.0 / np.asarray(params.v0, dtype=float), 0.0, f)
+        self.a, self.T, self.s0 = g("a").astype(f), g("T").astype(f), g("s0").astype(f)
+        self.c = (0.5 / np.sqrt(g("a") * g("b"))).astype(f)
+        self.p, self.th, self.b_safe = g("politeness").astype(f), g("threshold").astype(f), g("b_safe").astype(f)
+
+    def free(self, v: np.ndarray) -> np.ndarray:
+        """(v / v0)^4 of every row of ``v`` (N+1, S); speeds below 0 count as 0."""
+        r = np.maximum(v, 0.0)
+        r *= self.inv_v0
+        r *= r
+        r *= r
+        return r
+
+
 def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bool) -> RolloutResult:
     s, n = scene.x.shape
     dt, W = cfg.dt, cfg.lane_width_m
     k_steps = cfg.n_steps
     mobil_every = max(1, int(round(cfg.mobil_interval_s / dt)))
+    if cfg.delta != 4.0:
+        raise ValueError("the rollout implements delta = 4 only")
 
-    # state, contiguous (S, N+1); column N is the phantom
-    dt_ = np.dtype(cfg.dtype)
-    x = _pad(scene.x, PHANTOM_X, dt_)
-    v = _pad(scene.v, 0.0, dt_)
-    y = _pad(scene.y, 0.0, dt_)
-    hl = np.concatenate([scene.length / 2.0, [0.0]]).astype(dt_)     # half lengths (N+1,)
-    P = {k: _pad(getattr(params, k), 1.0, dt_) for k in _PARAM_FIELDS}
-    cur = np.clip(np.rint(scene.y / W).astype(int), cfg.lane_min, cfg.lane_max)
-    tgt = np.clip(np.clip(scene.target_lane.astype(int), cfg.lane_min, cfg.lane_max), cur - 1, cur + 1)
-    tgt_y = _pad(tgt * W, 0.0, dt_)
-    last_change = np.full((s, n), -np.inf)
-    lane_changes = np.zeros((s, n), dtype=int)
-    can_mobil = np.broadcast_to(scene.mobil, (s, n)) & (cfg.lane_max > cfg.lane_min)
+    # vehicle-major state: x, v (N+1, S) with the phantom in row N; y (N, S)
+    f = np.dtype(cfg.dtype)
+    x = _pad(scene.x, PHANTOM_X, f)
+    v = _pad(scene.v, 0.0, f)
+    y = np.ascontiguousarray(np.asarray(scene.y, dtype=f).T)
+    xn, vn = x[:n], v[:n]
+    hl = np.concatenate([scene.length / 2.0, [0.0]]).astype(f)[:, None]     # half lengths (N+1, 1)
+    D = _Drivers(params, f)
+    cur = np.clip(np.rint(y / W).astype(np.int64), cfg.lane_min, cfg.lane_max)
+    tgt = np.clip(np.clip(np.asarray(scene.target_lane, dtype=np.int64).T, cfg.lane_min, cfg.lane_max),
+                  cur - 1, cur + 1)
+    tgt_y = (tgt * W).astype(f)
+    last_change = np.full((n, s), -np.inf)
+    lane_changes = np.zeros((n, s), dtype=int)
+    can_mobil = np.broadcast_to(np.asarray(scene.mobil, bool)[:, None], (n, s)) & (cfg.lane_max > cfg.lane_min)
+    any_mobil = bool(can_mobil.any())
     v_lat = W / cfg.lane_change_duration_s
 
-    # conflict geometry against the ego (column 0); the ego's own and the phantom's columns are masked
-    hx = np.concatenate([(scene.length + scene.length[0]) / 2.0, [0.0]]).astype(dt_)
-    hy = np.concatenate([(scene.width + scene.width[0]) / 2.0, [0.0]]).astype(dt_)
-    conflict_t = np.full((s, n + 1), np.inf)
-    collision_t = np.full((s, n + 1), np.inf)
+    # conflict geometry against the ego (row 0) for rows 1..N-1
+    hx = ((scene.length[1:] + scene.length[0]) / 2.0).astype(f)[:, None]
+    hy = ((scene.width[1:] + scene.width[0]) / 2.0).astype(f)[:, None]
+    conflict_t = np.full((n - 1, s), np.inf)
+    collision_t = np.full((n - 1, s), np.inf)
     rec = [] if record else None
 
-    def idm(vf, v0f, gap, dv, a, b, T, s0):
-        return idm_acceleration(vf, v0f, gap, dv, a, b, T, s0, cfg.delta, cfg.floor_s_star)
+    order = lead = None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in range(k_steps + 1):
+            t = k * dt
+            vy = np.subtract(tgt_y, y)
+            vy *= 1.0 / dt
+            np.clip(vy, -v_lat, v_lat, out=vy)
+            # ---- conflicts with the ego at t_k: closed-form constant-velocity contact window of two rectangles
+            if n > 1:
+                _conflicts(t, x[1:n] - x[0], v[1:n] - v[0], y[1:] - y[0], vy[1:] - vy[0], hx, hy,
+                           cfg.near_miss_ttc_s, conflict_t, collision_t)
+            if record:
+                rec.append((xn.T.copy(), y.T.copy(), vn.T.copy()))
+            if k == k_steps:
+                break
 
-    links = None
-    for k in range(k_steps + 1):
-        t = k * dt
-        vy = np.clip((tgt_y - y) * (1.0 / dt), -v_lat, v_lat)
-        # ---- conflicts with the ego at t_k: closed-form constant-velocity contact window of two rectangles
-        with np.errstate(divide="ignore", invalid="ignore"):
-            dxl, rvx = x - x[:, :1], v - v[:, :1]
-            dyl, rvy = y - y[:, :1], vy - vy[:, :1]
-            ta, tb = (-hx - dxl) / rvx, (hx - dxl) / rvx
-            tc, td = (-hy - dyl) / rvy, (hy - dyl) / rvy
-        enter = np.maximum(np.minimum(ta, tb), np.minimum(tc, td))
-        leave = np.minimum(np.maximum(ta, tb), np.maximum(tc, td))
-        conflict = (enter < leave) & (leave > 0) & (enter < cfg.near_miss_ttc_s)
-        conflict[:, 0] = False
-        if conflict.any():
-            new = conflict & (conflict_t == np.inf)
-            np.copyto(conflict_t, t + np.maximum(enter, 0.0), where=new)
-            np.copyto(collision_t, t, where=new & (enter <= 0))
-            np.copyto(collision_t, t, where=conflict & (enter <= 0) & (collision_t == np.inf))
-        if record:
-            rec.append((x[:, :n].copy(), y[:, :n].copy(), v[:, :n].copy()))
-        if k == k_steps:
-            break
-
-        mobil_now = k % mobil_every == 0
-        if mobil_now or links is None:   # membership: lane changes that reached their lane end
-            arrived = (tgt != cur) & (np.abs(y[:, :n] - tgt * W) < 1e-3 * W)
-            if links is None or arrived.any():
+            mobil_now = k % mobil_every == 0
+            if mobil_now:   # lane membership (lane changes that reached their lane end) and a fresh x order
+                arrived = (tgt != cur) & (np.abs(y - tgt_y) < 1e-3 * W)
                 cur = np.where(arrived, tgt, cur)
-                links = _Links(cfg, x, cur, tgt)
-        # ---- IDM behind the leader in the current lane (and the target lane while changing)
-        gap = np.take(x, links.leader_flat) - x - (hl + hl[links.leader])
-        acc_raw = idm(v, P["v0"], gap, v - np.take(v, links.leader_flat), P["a"], P["b"], P["T"], P["s0"])
-        acc = acc_raw
-        if links.chg_flat.size:
-            cf, lf = links.chg_flat, links.chg_lead_flat
-            gap1 = np.take(x, lf) - np.take(x, cf) - (np.take(hl, cf % (n + 1)) + np.take(hl, lf % (n + 1)))
-            vc = np.take(v, cf)
-            acc1 = idm(vc, np.take(P["v0"], cf), gap1, vc - np.take(v, lf),
-                       *(np.take(P[q], cf) for q in ("a", "b", "T", "s0")))
-            acc = acc_raw.copy()
-            acc.flat[cf] = np.minimum(acc_raw.flat[cf], acc1)
-        if mobil_now and can_mobil.any():
-            cand = can_mobil & (tgt == cur) & (t - last_change >= cfg.lane_change_cooldown_s) \
-                & (v[:, :n] >= cfg.min_lane_change_speed_mps)
-            d = _mobil_decisions(cfg, links, x, v, hl, P, acc_raw, cur, cand)
-            change = d != 0
-            if change.any():
-                tgt = np.where(change, cur + d, tgt)
-                tgt_y[:, :n] = tgt * W
-                last_change[change] = t
-                lane_changes += change
-                links = _Links(cfg, x, cur, tgt)
-        np.clip(acc, -cfg.decel_limit_mps2, cfg.accel_limit_mps2, out=acc)
-        # ---- integrate
-        if cfg.integrator == "euler":
-            x += v * dt
-            v += acc * dt
-        else:
-            v_raw = v + acc * dt
-            v_new = np.maximum(v_raw, 0.0)
-            dx = (v + v_new) * (0.5 * dt)
-            stopping = v_raw < 0.0
-            if stopping.any():   # stops inside the step: exact stopping distance v^2 / (2 |a|)
-                np.copyto(dx, v * v / (-2.0 * np.minimum(acc, -1e-12)), where=stopping)
-            x += dx
-            v = v_new
-        y += vy * dt
-        x[:, n] = PHANTOM_X
-        v[:, n] = 0.0
-    out = RolloutResult(conflict_t[:, :n], collision_t[:, :n], lane_changes)
+                order = _Order(x, cfg.lane_min, cfg.lane_max)
+                order.set_lanes(cur, tgt)
+                lead = _flat(order.leaders(np.stack([cur, tgt])), s)   # leader in own lane | target lane
+            # ---- IDM behind the leader in the current lane and, while changing, the target lane (take the smaller)
+            front, rear = x + hl, x - hl
+            rear_l, v_l = np.take(rear, lead), np.take(v, lead)                 # (2, N, S)
+            free = D.free(v)
+            afree = D.a * (1.0 - free[:n])
+            acc2 = _idm(vn, D.a, afree, D.T, D.c, D.s0, vn - v_l, rear_l - front[:n], cfg.floor_s_star)
+            acc_raw = acc2[0]
+            acc = np.minimum(acc2[0], acc2[1])
+            if mobil_now and any_mobil:
+                cand = can_mobil & (tgt == cur) & (t - last_change >= cfg.lane_change_cooldown_s) \
+                    & (vn >= cfg.min_lane_change_speed_mps)
+                ok, gain = _mobil(cfg, order, x, v, front, rear, free, D, acc_raw, rear_l[0], v_l[0], cur, cand,
+                                  cfg.floor_s_star)
+                d = _choose(ok, gain)
+                change = d != 0
+                if change.any():
+                    tgt = np.where(change, cur + d, tgt)
+                    tgt_y = (tgt * W).astype(f)
+                    last_change[change] = t
+                    lane_changes += change
+                    order.set_lanes(cur, tgt)
+                    lead = _flat(order.leaders(np.stack([cur, tgt])), s)
+            np.clip(acc, -cfg.decel_limit_mps2, cfg.accel_limit_mps2, out=acc)
+            # ---- integrate
+            if cfg.integrator == "euler":
+                xn += vn * dt
+                vn += acc * dt
+            else:
+                v_new = acc * dt
+                v_new += vn
+                stopping = v_new < 0.0
+                np.maximum(v_new, 0.0, out=v_new)
+                dx = vn + v_new
+                dx *= 0.5 * dt
+                if stopping.any():   # stops inside the step: exact stopping distance v^2 / (2 |a|)
+                    np.copyto(dx, vn * vn / (-2.0 * np.minimum(acc, -1e-12)), where=stopping)
+                xn += dx
+                vn[...] = v_new
+            vy *= dt
+            y += vy
+    out = RolloutResult(_to_sn(conflict_t, s), _to_sn(collision_t, s), np.ascontiguousarray(lane_changes.T))
     if record:
         out.x, out.y, out.v = (np.stack([r[i] for r in rec]) for i in range(3))
     return out
 
 
-def _mobil_decisions(cfg, links, x, v, hl, P, acc_self_now, cur, cand, sides: bool = False):
-    """MOBIL's choice for every candidate, (S, N) in {-1, 0, +1}; evaluated only for candidate (sample, vehicle, side).
+def _to_sn(a: np.ndarray, s: int) -> np.ndarray:
+    """(N-1, S) rows of the non-ego vehicles -> (S, N) with the ego's column inf."""
+    return np.ascontiguousarray(np.concatenate([np.full((1, s), np.inf), a]).T)
+
+
+def _conflicts(t, dxl, rvx, dyl, rvy, hx, hy, horizon, conflict_t, collision_t) -> None:
+    """Record first conflicts / collisions at time ``t``: CV contact windows of rectangles (relative states)."""
+    ta = (-hx - dxl) / rvx
+    tb = (hx - dxl) / rvx
+    tc = (-hy - dyl) / rvy
+    td = (hy - dyl) / rvy
+    enter = np.maximum(np.minimum(ta, tb), np.minimum(tc, td))
+    leave = np.minimum(np.maximum(ta, tb), np.maximum(tc, td))
+    conflict = enter < leave
+    conflict &= leave > 0
+    conflict &= enter < horizon
+    if conflict.any():
+        new = conflict & (conflict_t == np.inf)
+        np.copyto(conflict_t, t + np.maximum(enter, 0.0), where=new)
+        np.copyto(collision_t, t, where=conflict & (enter <= 0) & (collision_t == np.inf))
+
+
+def _mobil(cfg, order, x, v, front, rear, free, D, acc_self_now, rear_lead, v_lead, cur, cand, floor_s_star):
+    """MOBIL for both side lanes of every vehicle: (ok, gain), each (2, N, S), [left, right].
 
     As in highway-env's ``IDMVehicle.mobil``, the changer evaluates each
     follower's acceleration with its own IDM parameters (a, b, T, s0) and the
-    follower's own desired speed and state. When both sides qualify, the larger
-    gain wins (highway-env takes the last side lane it checks).
+    follower's own desired speed and state. ``rear_lead``/``v_lead`` (N, S):
+    the changer's current leader; ``acc_self_now`` its current IDM acceleration.
     """
-    s, n = cur.shape
-    picks = []
-    for d in (-1, 1):
-        lane = cur + d
-        si, vi = np.nonzero(cand & (lane >= cfg.lane_min) & (lane <= cfg.lane_max))
-        picks.append((si, vi, np.full(si.size, d)))
-    si, vi, di = (np.concatenate(z) for z in zip(*picks))
-    if si.size == 0:
-        return np.zeros((2, s, n), dtype=bool) if sides else np.zeros((s, n), dtype=int)
-    me = si * (n + 1) + vi
-    lane_code = cur[si, vi] + di - cfg.lane_min
-    new_lead, new_foll = links.neighbours_in_lane(si, lane_code, x.flat[me])
-    old_lead, old_foll = links.leader.flat[me], links.follower.flat[me]
-    # rows: self behind new leader | new follower behind self | new follower behind new leader |
-    #       old follower behind self | old follower behind old leader
-    # (one row at a time: temporaries stay small, see _MAX_ELEMS)
-    a, b, T, s0 = (np.take(P[q], me) for q in ("a", "b", "T", "s0"))
-    row = si * (n + 1)
-    acc = []
-    for F, L in ((vi, new_lead), (new_foll, vi), (new_foll, new_lead), (old_foll, vi), (old_foll, old_lead)):
-        Ff, Lf = F + row, L + row
-        vf = np.take(v, Ff)
-        gap = np.take(x, Lf) - np.take(x, Ff) - (np.take(hl, F) + np.take(hl, L))
-        r = idm_acceleration(vf, np.take(P["v0"], Ff), gap, vf - np.take(v, Lf), a, b, T, s0,
-                             cfg.delta, cfg.floor_s_star)
-        r[F == n] = 0.0   # no follower: highway-env's acceleration(None) = 0
-        acc.append(r)
-    a_now = acc_self_now.flat[me]
-    p, th, bs = (np.take(P[q], me) for q in ("politeness", "threshold", "b_safe"))
-    ok = mobil_decision(a_now, acc[0], acc[2], acc[1], acc[3], acc[4], p, th, bs)
-    gain = mobil_incentive(a_now, acc[0], acc[2], acc[1], acc[3], acc[4], p)
-    best = np.full((2, s, n), -np.inf)
-    best[(di + 1) // 2, si, vi] = np.where(ok, gain, -np.inf)
-    if sides:
-        return np.isfinite(best)
-    right = best[1] > best[0]
-    top = np.maximum(best[0], best[1])
-    return np.where(np.isfinite(top), np.where(right, 1, -1), 0)
+    n, s = cur.shape
+    sides = np.stack([cur - 1, cur + 1])
+    new_lead = _flat(order.leaders(sides), s)                                   # (2, N, S)
+    foll = order.followers(np.concatenate([sides, cur[None]]))                  # new -, new +, old
+    foll_f = _flat(foll, s)
+    no_foll = foll == n
+    a, T, c, s0 = D.a, D.T, D.c, D.s0
+    xr_nl, v_nl = np.take(rear, new_lead), np.take(v, new_lead)
+    xf_f, v_f = np.take(front, foll_f), np.take(v, foll_f)                      # (3, N, S)
+    afree_f = a * (1.0 - np.take(free, foll_f))
+    vn = v[:n]
+    # self behind the new leader
+    a_self_after = _idm(vn, a, a * (1.0 - free[:n]), T, c, s0, vn - v_nl, xr_nl - front[:n], floor_s_star)
+    # each follower (new -, new +, old) behind self, and behind its other leader (new -, new +, old leader)
+    behind_self = _idm(v_f, a, afree_f, T, c, s0, v_f - vn, rear[:n] - xf_f, floor_s_star)
+    xr_o = np.concatenate([xr_nl, rear_lead[None]])
+    v_o = np.concatenate([v_nl, v_lead[None]])
+    behind_other = _idm(v_f, a, afree_f, T, c, s0, v_f - v_o, xr_o - xf_f, floor_s_star)
+    behind_self[no_foll] = 0.0    # no follower: highway-env's acceleration(None) = 0
+    behind_other[no_foll] = 0.0
+    # gain = self + p * (new follower: after - now + old follower: after - now)
+    gain = (behind_self[:2] - behind_other[:2]) + (behind_other[2] - behind_self[2])
+    gain *= D.p
+    gain += a_self_after
+    gain -= acc_self_now
+    ok = mobil_safe(behind_self[:2], D.b_safe)
+    ok &= gain >= D.th
+    ok &= cand
+    ok &= (sides >= cfg.lane_min) & (sides <= cfg.lane_max)
+    return ok, gain
+
+
+def _choose(ok: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """(N, S) in {-1, 0, +1}: the qualifying side with the larger gain (left on a tie)."""
+    best = np.where(ok, gain, -np.inf)
+    return np.where(ok[0] | ok[1], np.where(best[1] > best[0], 1, -1), 0)
 
 
 def mobil_sides(scene: Scene, params: DriverParams, cfg: RolloutConfig) -> np.ndarray:
     """MOBIL's verdict on each side lane for every vehicle of the initial scene: (2, S, N) bool, [left, right].
 
-    The rollout's own code path (relink + one MOBIL evaluation at t = 0, no
+    The rollout's own code path (order + lanes + one MOBIL evaluation at t = 0, no
     cooldown, speed >= ``min_lane_change_speed_mps``), for parity tests against
     highway-env's ``IDMVehicle.mobil``. Lanes outside [lane_min, lane_max] are False.
     """
     s, n = scene.x.shape
     W = cfg.lane_width_m
-    x, v = _pad(scene.x, PHANTOM_X), _pad(scene.v, 0.0)
-    hl = np.concatenate([scene.length / 2.0, [0.0]])
-    P = {k: _pad(getattr(params, k), 1.0) for k in _PARAM_FIELDS}
-    cur = np.clip(np.rint(scene.y / W).astype(int), cfg.lane_min, cfg.lane_max)
-    links = _Links(cfg, x, cur, cur)
-    gap = np.take(x, links.leader_flat) - x - (hl + hl[links.leader])
-    acc_now = idm_acceleration(v, P["v0"], gap, v - np.take(v, links.leader_flat), P["a"], P["b"], P["T"], P["s0"],
-                               cfg.delta, cfg.floor_s_star)
-    cand = np.broadcast_to(scene.mobil, (s, n)) & (v[:, :n] >= cfg.min_lane_change_speed_mps)
-    return _mobil_decisions(cfg, links, x, v, hl, P, acc_now, cur, cand, sides=True)
+    f = np.dtype(cfg.dtype)
+    x, v = _pad(scene.x, PHANTOM_X, f), _pad(scene.v, 0.0, f)
+    hl = np.concatenate([scene.length / 2.0, [0.0]]).astype(f)[:, None]
+    D = _Drivers(params, f)
+    cur = np.clip(np.rint(np.asarray(scene.y).T / W).astype(np.int64), cfg.lane_min, cfg.lane_max)
+    order = _Order(x, cfg.lane_min, cfg.lane_max)
+    order.set_lanes(cur, cur)
+    lead = _flat(order.leaders(cur), s)
+    front, rear = x + hl, x - hl
+    free = D.free(v)
+    rear_l, v_l = np.take(rear, lead), np.take(v, lead)
+    acc_now = _idm(v[:n], D.a, D.a * (1.0 - free[:n]), D.T, D.c, D.s0, v[:n] - v_l, rear_l - front[:n],
+                   cfg.floor_s_star)
+    cand = np.broadcast_to(np.asarray(scene.mobil, bool)[:, None], (n, s)) & (v[:n] >= cfg.min_lane_change_speed_mps)
+    ok, _ = _mobil(cfg, order, x, v, front, rear, free, D, acc_now, rear_l, v_l, cur, cand, cfg.floor_s_star)
+    return ok.transpose(0, 2, 1)
