@@ -16,7 +16,7 @@ import numpy as np
 
 from harness import scenario as sc
 from harness.scenario import ScenarioError
-from harness.simulation.events import CutInStart, timed_events
+from harness.simulation.events import timed_events
 from harness.simulation.placement import (
     EGO_START_X_M, ROAD_START_MARGIN_M, Footprint, cut_in_distance, placed_centre_x, traffic_slots)
 from harness.simulation.road import build_road, lane_centre_y
@@ -40,8 +40,8 @@ class Simulation:
         _check_events(scenario)
         _check_road_length(scenario)
         self.ego = self._make_ego()
-        placed = self._make_placed()
-        traffic = self._make_traffic(np.random.default_rng(traffic_seed), placed)
+        placed, footprints = self._make_placed()
+        traffic = self._make_traffic(np.random.default_rng(traffic_seed), footprints)
         events = timed_events(list(scenario.events), self.ego)
         for v in [self.ego, *placed]:
             key = "ego" if v is self.ego else v.name
@@ -82,7 +82,8 @@ class Simulation:
                                behaviour=s.ego.behaviour, lane_changes=s.ego.lane_changes,
                                **self._vehicle_kwargs())
 
-    def _make_placed(self) -> list[ScenarioVehicle | StationaryVehicle]:
+    def _make_placed(self) -> tuple[list[ScenarioVehicle | StationaryVehicle], list[Footprint]]:
+        """The placed vehicles (ids 1..P) and the footprints at t = 0 of the ego and them."""
         s = self.scenario
         cut_ins = {e.vehicle: e for e in s.events if isinstance(e, sc.CutInEvent)}
         footprints = [Footprint(self.ego.position[0], self.ego.position[1], self.ego.LENGTH, self.ego.WIDTH)]
@@ -115,14 +116,13 @@ class Simulation:
                 out.append(ScenarioVehicle(position=pos, speed=p.speed_mps, vid=i, name=p.name,
                                            behaviour=p.behaviour, lane_changes=p.lane_changes,
                                            length=p.length_m, width=p.width_m, **self._vehicle_kwargs()))
-        self._placed_footprints = footprints
-        return out
+        return out, footprints
 
-    def _make_traffic(self, rng: np.random.Generator, placed: list) -> list[ScenarioVehicle]:
+    def _make_traffic(self, rng: np.random.Generator, occupied: list[Footprint]) -> list[ScenarioVehicle]:
         s, t = self.scenario, self.scenario.traffic
         try:
             slots = traffic_slots(rng, t.vehicles_count, s.road.lanes, s.road.lane_width_m, t.density,
-                                  t.speed_range_mps, self._placed_footprints, EGO_START_X_M, s.road.length_m)
+                                  t.speed_range_mps, occupied, EGO_START_X_M, s.road.length_m)
         except ValueError as e:
             raise ScenarioError(f"scenario {s.name!r}: traffic.vehicles_count: {e}") from None
         first = len(s.vehicles) + 1
