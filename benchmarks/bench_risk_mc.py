@@ -2,13 +2,17 @@
 
 Prints, for 500 and 1000 rollouts with 5 and 10 vehicles on a 3-lane scene, the
 median wall-clock and process-CPU time per ``assess`` over repeated calls (the
-first call, which draws and caches the drivers, is reported apart).
+first call, which draws and caches the drivers, is reported apart). Process-CPU
+time is the figure to compare on a shared machine (wall time grows with the
+load, which is printed before and after). Target (issue 5): <= 10 ms per frame
+with 500 rollouts.
 Usage: python benchmarks/bench_risk_mc.py [--repeats 20] [--dt 0.2]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -29,7 +33,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--dt", type=float, default=0.2)
     args = ap.parse_args()
-    print(f"dt={args.dt} s, horizon 10 s, lanes -1..1, ego 25 m/s")
+    print(f"dt={args.dt} s, horizon 10 s, lanes -1..1, ego 25 m/s; load average {os.getloadavg()}")
     print(f"{'rollouts':>8} {'vehicles':>8} {'first ms':>9} {'wall ms':>8} {'cpu ms':>7} {'risk':>6}")
     for n_roll in (500, 1000):
         for n_veh in (5, 10):
@@ -46,6 +50,7 @@ def main() -> None:
                 cpu.append(time.process_time() - c0)
             print(f"{n_roll:>8} {n_veh:>8} {first:>9.1f} {np.median(wall) * 1e3:>8.1f} "
                   f"{np.median(cpu) * 1e3:>7.1f} {r.risk:>6.3f}")
+    print(f"load average after: {os.getloadavg()}")
 
 
 if __name__ == "__main__":

@@ -54,6 +54,25 @@ distance error at 4 m/s^2 even with exact boxes) where ``"ca"`` does not
 Positions are output filtered. Coasting tracks (no detection this frame) only
 predict, and are dropped once they have coasted more than ``max_coast_used``
 consecutive frames, so stale tracks never feed the risk estimator.
+
+**Boxes cut by the image border.** A box edge within ``border_tol_px`` (1 px)
+of the image border is not the vehicle's edge but the border's. A vehicle in an
+adjacent lane leaving the view has its far edge cut: equation 4 would then read
+the border and the lateral distance would shrink frame after frame (a false
+lateral velocity of several m/s towards the ego, and false TTC warnings). Then
+the *near* edge is used instead: for a vehicle beside the centre line its near
+edge is the inner side's *front* corner (the side face is seen and its far end
+projects closest to the centre column), at ``d_y + L`` with an assumed length
+``L = vehicle_length_m`` (4.5 m) and the front bumper's lower edge
+(``ground_clearance_m``) for the row (matters only with pitch):
+``d_x = (u_near - c_x) / F * Z_cam(d_y + L) +- W_r / 2`` (+ for a vehicle to the
+right). For a box straddling the centre column (only the rear face visible) with
+one side cut, the other side is a rear corner: ``d_x = x(u_edge, d_y) -+ W_r / 2``.
+With both sides cut the lateral distance is not measured (the filter predicts;
+differencing holds the last value). A box whose bottom edge touches the
+bottom border has lost its contact line: its distance is not measured either
+(the lateral one then uses the filtered distance of a known track). A new track
+whose box gives no distance or no lateral distance is not output until it does.
 """
 
 from __future__ import annotations
@@ -85,28 +104,96 @@ def eq4_lateral(d_y, d_e, focal_px: float, width_m: float) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------- measurement
-def measure_boxes(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float = 1.8,
-                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17) -> np.ndarray:
-    """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` in the ego frame (m); NaN rows for boxes not below the horizon.
+def border_flags(camera: CameraModel, boxes: np.ndarray, tol_px: float | None = 1.0) -> np.ndarray:
+    """(M, 3) booleans: the box's left edge, right edge, bottom edge touches the image border.
 
-    See the module docstring for the geometry.
+    "Touches": within ``tol_px`` of the border (continuous coordinates: the image spans
+    -0.5 .. width - 0.5); boxes reaching beyond the image count too. ``tol_px=None``: never.
     """
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
-    x1, y1, x2, v_b = b[:, 0], b[:, 1], b[:, 2], b[:, 3]
-    ground = camera.ground_point_from_pixel(np.full_like(v_b, camera.cx), v_b)
-    y_g = ground[:, 1]                                              # ground distance of the bottom-edge ray
-    d_y = np.maximum(y_g - contact_offset_m, y_g * (1.0 - ground_clearance_m / camera.height_m))
+    if tol_px is None:
+        return np.zeros((len(b), 3), dtype=bool)
+    return np.stack([b[:, 0] <= -0.5 + tol_px, b[:, 2] >= camera.width - 0.5 - tol_px,
+                     b[:, 3] >= camera.height - 0.5 - tol_px], axis=1)
 
-    right, left = x1 > camera.cx, x2 < camera.cx
-    u_e = np.where(right, x2, np.where(left, x1, (x1 + x2) / 2))    # far edge, or centre when straddling
-    half = np.where(right, vehicle_width_m / 2, np.where(left, -vehicle_width_m / 2, 0.0))
-    # Row of the far edge's extreme point: pitched down, the rear face's top corner; otherwise its bottom.
+
+def box_distance(camera: CameraModel, boxes: np.ndarray, contact_offset_m: float = 0.95,
+                 ground_clearance_m: float = 0.17, border_tol_px: float | None = 1.0) -> np.ndarray:
+    """(M,) ``d_y`` (m) of each box's rear face from its bottom edge (equation 3 + contact-line correction).
+
+    NaN for boxes not below the horizon and for boxes whose bottom edge touches the
+    image's bottom border (truncated: their real bottom edge is out of view).
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    v_b = b[:, 3]
+    y_g = camera.ground_point_from_pixel(np.full_like(v_b, camera.cx), v_b)[:, 1]   # ground distance of the ray
+    d_y = np.maximum(y_g - contact_offset_m, y_g * (1.0 - ground_clearance_m / camera.height_m))
+    return np.where(border_flags(camera, b, border_tol_px)[:, 2], np.nan, d_y)
+
+
+def lateral_terms(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float = 1.8,
+                  vehicle_length_m: float = 4.5, ground_clearance_m: float = 0.17,
+                  border_tol_px: float | None = 1.0) -> np.ndarray:
+    """(M, 3) ``(a, b, c)`` with ``d_x = a (d_y + b) + c`` (m) for each box; NaN row: not measurable.
+
+    Equation 4 is linear in the distance ``d_y``, so the box gives these terms and any
+    ``d_y`` (measured, or the filter's when the bottom edge is cut) gives ``d_x``.
+    Far edge (rear outer corner) when it is inside the image; otherwise the near edge
+    (front inner corner, ``b = L + ...``); see the module docstring.
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    x1, y1, x2, v_b = b.T
+    cut_l, cut_r, _ = border_flags(camera, b, border_tol_px).T
+    cx, half = camera.cx, vehicle_width_m / 2
+    right, left = x1 > cx, x2 < cx
+    straddle = ~right & ~left
+    # Default: far edge (or the centre of a straddling box) on the rear-face plane y = d_y.
+    u = np.where(right, x2, np.where(left, x1, (x1 + x2) / 2))
+    c = np.where(right, -half, np.where(left, half, 0.0))
+    # Straddling with one side cut: the other side is a rear corner.
+    one_cut = straddle & (cut_l ^ cut_r)
+    u = np.where(one_cut, np.where(cut_l, x2, x1), u)
+    c = np.where(one_cut, np.where(cut_l, -half, half), c)
+    # Row of the edge's extreme point: pitched down, the rear face's top corner; otherwise its bottom.
     v_e = y1 if camera.pitch_rad > 0 else v_b
-    rays = camera.cam_to_ego(np.stack([(u_e - camera.cx) / camera.fx, (v_e - camera.cy) / camera.fy,
-                                       np.ones_like(u_e)], axis=-1))
+    rays = camera.cam_to_ego(np.stack([(u - cx) / camera.fx, (v_e - camera.cy) / camera.fy,
+                                       np.ones_like(u)], axis=-1))
     with np.errstate(divide="ignore", invalid="ignore"):
-        x_edge = rays[:, 0] * d_y / rays[:, 1]                      # ray meets the rear-face plane y = d_y
-    return np.stack([x_edge - half, d_y], axis=1)
+        a = rays[:, 0] / rays[:, 1]
+    bb = np.zeros_like(a)
+    # Beside the centre line with the far edge cut: the near edge, the inner side's front lower corner,
+    # on the plane y = d_y + L at height ground_clearance: x = (u - cx) / fx * Z_cam.
+    near = (right & cut_r) | (left & cut_l)
+    R = camera.R_cam_from_ego
+    z_corner = -camera.height_m + ground_clearance_m                 # ego frame: origin at the camera
+    u_n = np.where(right, x1, x2)
+    a = np.where(near, (u_n - cx) / camera.fx * R[2, 1], a)
+    bb = np.where(near, vehicle_length_m + R[2, 2] * z_corner / R[2, 1], bb)
+    c = np.where(near, np.where(right, half, -half), c)
+    bad = (near & cut_l & cut_r) | (straddle & cut_l & cut_r)
+    out = np.stack([a, bb, c], axis=1)
+    out[bad] = np.nan
+    return out
+
+
+def lateral_from_terms(terms: np.ndarray, d_y: np.ndarray) -> np.ndarray:
+    """``d_x = a (d_y + b) + c`` (m) for (M, 3) :func:`lateral_terms` and (M,) distances."""
+    return terms[:, 0] * (np.asarray(d_y, dtype=float) + terms[:, 1]) + terms[:, 2]
+
+
+def measure_boxes(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float = 1.8,
+                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17,
+                  vehicle_length_m: float = 4.5, border_tol_px: float | None = 1.0) -> np.ndarray:
+    """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` in the ego frame (m).
+
+    NaN where a box does not give the value: not below the horizon, bottom edge on the
+    image border (both NaN), both sides on the border (``d_x`` NaN). ``border_tol_px=None``
+    treats every box as whole. See the module docstring for the geometry.
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    d_y = box_distance(camera, b, contact_offset_m, ground_clearance_m, border_tol_px)
+    terms = lateral_terms(camera, b, vehicle_width_m, vehicle_length_m, ground_clearance_m, border_tol_px)
+    return np.stack([lateral_from_terms(terms, d_y), d_y], axis=1)
 
 
 # ---------------------------------------------------------------------------- filtering
@@ -153,7 +240,9 @@ class StateEstimator:
         process_std: Kalman process noise: jerk std (m/s^3) for ``"ca"``, acceleration std (m/s^2) for ``"cv"``.
         pixel_std: Kalman measurement noise, box-edge std (px).
         vehicle_width_m: ``W_r`` of equation 4.
+        vehicle_length_m: assumed length (m), used only for the near edge of a box cut by the border.
         contact_offset_m, ground_clearance_m: the contact-line correction (0, 0 = the paper).
+        border_tol_px: a box edge this close to the image border (px) is the border's (None: never).
         max_coast_used: consecutive coasting frames after which a track is no longer output.
         forget_s: a track id unseen for this long (s) loses its history.
     """
@@ -161,7 +250,8 @@ class StateEstimator:
     def __init__(self, camera: CameraModel | dict, velocity: str = "kalman", motion: str = "ca",
                  process_std: float = 3.0, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,
                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17, max_coast_used: int = 2,
-                 init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0) -> None:
+                 init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0,
+                 vehicle_length_m: float = 4.5, border_tol_px: float | None = 1.0) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -170,8 +260,10 @@ class StateEstimator:
         self.velocity, self.motion = velocity, motion
         self.process_std, self.pixel_std = float(process_std), float(pixel_std)
         self.vehicle_width_m = float(vehicle_width_m)
+        self.vehicle_length_m = float(vehicle_length_m)
         self.contact_offset_m = float(contact_offset_m)
         self.ground_clearance_m = float(ground_clearance_m)
+        self.border_tol_px = None if border_tol_px is None else float(border_tol_px)
         self.max_coast_used = int(max_coast_used)
         n = 2 if motion == "cv" else 3
         self._prior_var = np.array([0.0, init_vel_std ** 2, init_acc_std ** 2][:n])
@@ -189,7 +281,14 @@ class StateEstimator:
     def measure(self, boxes: np.ndarray) -> np.ndarray:
         """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` (m) with this estimator's geometry parameters."""
         return measure_boxes(self.camera, boxes, self.vehicle_width_m, self.contact_offset_m,
-                             self.ground_clearance_m)
+                             self.ground_clearance_m, self.vehicle_length_m, self.border_tol_px)
+
+    def _terms(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Measured ``d_y`` (M,) and the lateral terms (M, 3) of :func:`lateral_terms`."""
+        d_y = box_distance(self.camera, boxes, self.contact_offset_m, self.ground_clearance_m, self.border_tol_px)
+        terms = lateral_terms(self.camera, boxes, self.vehicle_width_m, self.vehicle_length_m,
+                              self.ground_clearance_m, self.border_tol_px)
+        return d_y, terms
 
     def measurement_var(self, z: np.ndarray) -> np.ndarray:
         """(M, 2) variances (m^2) of measured (d_x, d_y): ``pixel_std`` through equations 3 and 4.
@@ -212,19 +311,29 @@ class StateEstimator:
         if not usable:
             return {}
         ids = [tr.id for tr in usable]
-        z = self.measure(np.array([tr.box for tr in usable], dtype=float))
+        d_y, terms = self._terms(np.array([tr.box for tr in usable], dtype=float))
         coasting = np.array([tr.coasting for tr in usable])
         known = np.array([i in self._state for i in ids])
-        ok = np.all(np.isfinite(z), axis=1) | (coasting & known)
+        # A new track needs both coordinates from its box; a known one is output in any case
+        # (the missing coordinates are predicted / held).
+        new_ok = np.isfinite(d_y) & np.isfinite(lateral_from_terms(terms, d_y))
+        ok = known | new_ok
         if self.velocity == "kalman":
-            out = self._kalman(ids, z, coasting, known, ok, t)
+            out = self._kalman(ids, d_y, terms, coasting, known, ok, t)
         else:
-            out = self._difference(ids, z, known, ok, t)
+            out = self._difference(ids, d_y, terms, known, ok, t)
         return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}
 
-    def _difference(self, ids, z, known, ok, t) -> np.ndarray:
-        """The paper: v = (d_k - d_{k-1}) / (t_k - t_{k-1}); 0 at initialisation."""
+    def _difference(self, ids, d_y, terms, known, ok, t) -> np.ndarray:
+        """The paper: v = (d_k - d_{k-1}) / (t_k - t_{k-1}); 0 at initialisation.
+
+        A coordinate the box does not give is held at its last value (velocity 0 on that axis).
+        """
         prev = np.array([self._state[i] if k else (np.nan, np.nan) for i, k in zip(ids, known)]).reshape(-1, 2)
+        y = np.where(np.isfinite(d_y), d_y, prev[:, 1])
+        x = lateral_from_terms(terms, y)
+        x = np.where(np.isfinite(x), x, prev[:, 0])
+        z = np.stack([x, y], axis=1)
         dt = np.array([t - self._t[i] if k else 0.0 for i, k in zip(ids, known)])
         with np.errstate(divide="ignore", invalid="ignore"):
             v = np.where((dt > 0)[:, None] & known[:, None], (z - prev) / dt[:, None], 0.0)
@@ -233,24 +342,30 @@ class StateEstimator:
                 self._state[i], self._t[i] = zi, t
         return np.concatenate([z, v], axis=1)
 
-    def _kalman(self, ids, z, coasting, known, ok, t) -> np.ndarray:
+    def _kalman(self, ids, d_y, terms, coasting, known, ok, t) -> np.ndarray:
         """Kalman filter per track and axis, vectorised over both (arrays of shape (M, 2, n))."""
         m, n = len(ids), len(self._prior_var)
-        zf = np.nan_to_num(z, nan=1.0)
-        r = self.measurement_var(zf)
         x, P = np.zeros((m, 2, n)), np.zeros((m, 2, n, n))
         for j, (i, k) in enumerate(zip(ids, known)):
             if k:
                 x[j], P[j] = self._state[i]
-            else:  # first sighting: at the measurement, at rest (the paper's v = 0), wide prior
-                x[j, :, 0] = zf[j]
-                P[j] = np.diag(self._prior_var)[None] + 0.0
-                P[j, :, 0, 0] = r[j]
         dt = np.array([t - self._t[i] if k else 0.0 for i, k in zip(ids, known)])
         F, Q = motion_model(self.motion, np.repeat(dt[:, None], 2, axis=1), self.process_std)
         x, P = kf_predict(x, P, F, Q)
-        upd = (known & ~coasting & ok)[:, None]
-        xu, Pu = kf_update(x, P, zf, r)
+        # Measurements; the lateral one uses the predicted distance where the box gives none.
+        y_ref = np.where(np.isfinite(d_y), d_y, x[:, 1, 0])
+        z = np.stack([lateral_from_terms(terms, y_ref), d_y], axis=1)
+        has = np.isfinite(z)
+        zf = np.where(has, z, x[:, :, 0])
+        r = self.measurement_var(np.nan_to_num(zf, nan=1.0))
+        for j, k in enumerate(known):
+            if not k and ok[j]:   # first sighting: at the measurement, at rest (the paper's v = 0), wide prior
+                x[j] = 0.0
+                x[j, :, 0] = zf[j]
+                P[j] = np.diag(self._prior_var)[None] + 0.0
+                P[j, :, 0, 0] = r[j]
+        upd = (known & ~coasting)[:, None] & has
+        xu, Pu = kf_update(x, P, np.nan_to_num(zf), r)
         x, P = np.where(upd[..., None], xu, x), np.where(upd[..., None, None], Pu, P)
         for j, i in enumerate(ids):
             if ok[j]:

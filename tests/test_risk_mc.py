@@ -268,3 +268,78 @@ def test_registered_as_risk_monte_carlo():
     assert _REGISTRY["risk"]["monte_carlo"] is MonteCarloRisk
     eps = {ep.name: ep.value for ep in entry_points(group="monorarp.risk")}
     assert eps.get("monte_carlo") == "monorarp.risk_mc.estimator:MonteCarloRisk"
+
+
+# ----------------------------------------------------------------------------- rollout internals
+def _brute_neighbours(x, occ, i, n):
+    """Leader / follower of vehicle i among the occupants ``occ`` of a lane, straight from the definition:
+    nearest ahead / behind in (x, index) order (exact ties in x: the higher index is ahead); n = nobody."""
+    ahead = [j for j in range(n) if occ[j] and j != i and (x[j], j) > (x[i], i)]
+    behind = [j for j in range(n) if occ[j] and j != i and (x[j], j) < (x[i], i)]
+    lead = min(ahead, key=lambda j: (x[j], j)) if ahead else n
+    foll = max(behind, key=lambda j: (x[j], j)) if behind else n
+    return lead, foll
+
+
+def test_lane_neighbours_match_brute_force():
+    from monorarp.risk_mc.rollout import PHANTOM_X, _Order
+
+    rng = np.random.default_rng(11)
+    s, lane_min, lane_max = 40, -1, 2
+    for n in (1, 2, 7, 12):
+        x = np.round(rng.uniform(-60, 60, (n, s)), 0)     # coarse: plenty of exact ties
+        cur = rng.integers(lane_min, lane_max + 1, (n, s))
+        tgt = np.clip(cur + rng.integers(-1, 2, (n, s)) * (rng.random((n, s)) < 0.4), lane_min, lane_max)
+        xs = np.concatenate([x, np.full((1, s), PHANTOM_X)])
+        order = _Order(xs, lane_min, lane_max)
+        order.set_lanes(order.slot(cur), order.slot(tgt), tgt != cur)
+        for d in (-1, 0, 1):
+            lane = cur + d
+            lead = order.leaders(order.slot(lane)) // s          # flat state index -> vehicle index
+            foll = order.followers(order.slot(lane)) // s
+            for si in range(s):
+                for i in range(n):
+                    occ = (cur[:, si] == lane[i, si]) | (tgt[:, si] == lane[i, si])
+                    assert (lead[i, si], foll[i, si]) == _brute_neighbours(x[:, si], occ, i, n)
+
+
+def test_rollout_idm_kernel_equals_reference_idm():
+    from monorarp.risk_mc.rollout import _idm, _Zeros
+
+    rng = np.random.default_rng(5)
+    m = 4000
+    v, v0, a, b = rng.uniform(0, 40, m), rng.uniform(5, 40, m), rng.uniform(0.5, 3, m), rng.uniform(1, 5, m)
+    T, s0, dv = rng.uniform(0.8, 2.5, m), rng.uniform(1, 12, m), rng.uniform(-30, 30, m)
+    gap = np.where(rng.random(m) < 0.1, np.inf, rng.uniform(-2, 150, m))   # overlaps and free road too
+    for floor in (True, False):
+        ref = idm_acceleration(v, v0, gap, dv, a, b, T, s0, floor_s_star=floor)
+        ours = _idm(v, a, a * (1 - (v / v0) ** 4), T, 0.5 / np.sqrt(a * b), s0, dv, gap.copy(), floor, _Zeros(float))
+        np.testing.assert_allclose(ours, ref, rtol=1e-9, atol=1e-9)
+
+
+def test_rollouts_do_not_depend_on_chunking(monkeypatch):
+    import monorarp.risk_mc.rollout as rollout
+
+    est = MonteCarloRisk(n_rollouts=120, seed=2, dtype="float64")
+    scene = {i: _state(i, float(np.array([-3.7, 0.0, 3.7])[i % 3]), 8.0 + 9.0 * i, 0.1 * (i % 2), -4.0 + i)
+             for i in range(1, 9)}
+    whole = est.assess(scene, 0.0, ego_speed=25.0)
+    res_whole = est.last_result
+    monkeypatch.setattr(rollout, "_MAX_ELEMS", 500)       # forces several sample chunks
+    chunked = est.assess(scene, 0.0, ego_speed=25.0)
+    assert whole == chunked
+    np.testing.assert_array_equal(res_whole.conflict_t, est.last_result.conflict_t)
+    np.testing.assert_array_equal(res_whole.lane_changes, est.last_result.lane_changes)
+    assert res_whole.lane_changes.sum() > 0                # lane changes really happen
+
+
+def test_more_tracks_than_the_rollout_limit():
+    from monorarp.risk_mc.rollout import MAX_VEHICLES
+
+    n = MAX_VEHICLES + 9
+    states = {i: _state(i, float([-3.7, 0.0, 3.7][i % 3]), 20.0 + 12.0 * i) for i in range(1, n + 1)}
+    states[999] = _state(999, 0.0, 10.0, v_y=-25.0)       # the nearest one: stopped just ahead
+    r = MonteCarloRisk(n_rollouts=32).assess(states, 0.0, ego_speed=25.0)
+    assert set(r.ttc) == set(states)
+    assert r.ttc[999] is not None and r.risk > 0.9
+    assert r.ttc[n] is None                                  # the farthest were left out

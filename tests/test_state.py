@@ -71,7 +71,7 @@ def test_eq3_level_camera_equals_paper_formula(level_cam, Y):
     v_b = project_cv2(level_cam, np.array([[0.7, Y, -level_cam.height_m]]))[0, 1]
     paper = eq3_distance(v_b, level_cam.horizon_row, level_cam.height_m, level_cam.fy)
     box = np.array([[300.0, v_b - 40, 340.0, v_b]])
-    exact = measure_boxes(level_cam, box, contact_offset_m=0.0, ground_clearance_m=0.0)[0, 1]
+    exact = measure_boxes(level_cam, box, contact_offset_m=0.0, ground_clearance_m=0.0, border_tol_px=None)[0, 1]
     assert paper == pytest.approx(Y, rel=1e-12)
     assert exact == pytest.approx(paper, rel=1e-12)
 
@@ -101,7 +101,7 @@ def test_eq4_far_edge_level_camera(level_cam, X, Y):
     far = box[0, 2] if X > 0 else box[0, 0]
     if abs(X) > W / 2:  # not straddling: the paper's equation 4 applies
         assert eq4_lateral(Y, far - level_cam.cx, level_cam.fx, W) == pytest.approx(X, abs=1e-9)
-    d_x, d_y = measure_boxes(level_cam, box, W, 0.0, 0.0)[0]
+    d_x, d_y = measure_boxes(level_cam, box, W, 0.0, 0.0, border_tol_px=None)[0]
     assert d_y == pytest.approx(Y, rel=1e-9)
     assert d_x == pytest.approx(X, abs=1e-9)
 
@@ -113,11 +113,12 @@ def test_full_vehicle_rear_face_recovered_with_contact_correction(request, cam_n
     """A 3-D box vehicle seen with its side, tyres and bumper: the default estimator recovers (X, Y)."""
     cam = request.getfixturevalue(cam_name)
     box = np.array([vehicle_box(cam, X, Y)])
-    d_x, d_y = measure_boxes(cam, box, 1.8, contact_offset_m=0.95, ground_clearance_m=0.17)[0]
+    d_x, d_y = measure_boxes(cam, box, 1.8, contact_offset_m=0.95, ground_clearance_m=0.17,
+                             border_tol_px=None)[0]  # unclipped boxes: pure geometry
     assert d_y == pytest.approx(Y, rel=1e-9)
     assert d_x == pytest.approx(X, abs=1e-6)
     # The paper's formula (no correction) measures the tyre contact line or the bumper instead.
-    d_y_paper = measure_boxes(cam, box, 1.8, 0.0, 0.0)[0, 1]
+    d_y_paper = measure_boxes(cam, box, 1.8, 0.0, 0.0, border_tol_px=None)[0, 1]
     assert d_y_paper - Y > 0.05
 
 

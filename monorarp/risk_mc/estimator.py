@@ -22,7 +22,9 @@ Scores (``score=``):
 first conflict (the predicted contact time at the first step where a conflict
 is seen; for unaccelerated motion it equals the constant-velocity TTC); rollouts
 without a conflict count as +inf, so it is ``None`` unless at least half of the
-rollouts conflict with that vehicle.
+rollouts conflict with that vehicle. The rollouts hold at most
+``rollout.MAX_VEHICLES - 1`` (60) tracked vehicles: with more, the nearest are
+simulated and the others get ``None``.
 
 Absolute speeds = ego speed + relative speeds. The ego speed is, in order: the
 ``ego_speed`` argument of :meth:`assess`, the last value given to
@@ -46,7 +48,7 @@ import numpy as np
 
 from monorarp.registry import register
 from monorarp.risk_mc.drivers import ROW_NV, ROW_NX, ROW_NY, DriverDistribution, DriverParams
-from monorarp.risk_mc.rollout import RolloutConfig, RolloutResult, Scene, simulate
+from monorarp.risk_mc.rollout import MAX_VEHICLES, RolloutConfig, RolloutResult, Scene, simulate
 from monorarp.risk_mc.scene import Geometry, Noise, lane_of, lane_range, road_positions
 from monorarp.types import ObjectState, RiskEstimate
 
@@ -146,9 +148,18 @@ class MonteCarloRisk:
         return blk
 
     # ------------------------------------------------------------------- scene
+    @staticmethod
+    def simulated_ids(states: dict[int, ObjectState]) -> list[int]:
+        """Track ids that enter the rollouts: all, or the ``MAX_VEHICLES - 1`` nearest (rollout limit)."""
+        ids = sorted(states)
+        if len(ids) < MAX_VEHICLES:
+            return ids
+        near = sorted(ids, key=lambda i: (math.hypot(states[i].d_x, states[i].d_y), i))
+        return sorted(near[:MAX_VEHICLES - 1])
+
     def build(self, states: dict[int, ObjectState], ego_speed: float) -> tuple[Scene, DriverParams]:
         """The rollouts' initial scene and sampled drivers for ``states`` at ``ego_speed`` (m/s)."""
-        ids = sorted(states)
+        ids = self.simulated_ids(states)
         geo, nz, S = self.geometry, self.noise, self.n_rollouts
         self._blocks = {k: v for k, v in self._blocks.items() if k in states or k == _EGO_KEY}
         blocks = np.stack([self._block(_EGO_KEY)] + [self._block(i) for i in ids], axis=-1)  # (K, S, N)
@@ -184,7 +195,7 @@ class MonteCarloRisk:
         if not states:
             self.last_result = None
             return RiskEstimate(risk=0.0, ttc={}, kind=self.score)
-        ids = sorted(states)
+        ids = self.simulated_ids(states)
         scene, params = self.build(states, v_e)
         lo, hi = self._lanes
         res = simulate(scene, params, replace(self.config, lane_min=lo, lane_max=hi))
@@ -196,5 +207,6 @@ class MonteCarloRisk:
             t_hit = np.maximum(res.collision_t[:, 1:].min(axis=1), self.config.dt)
             risk = float(np.mean(1.0 / t_hit))       # 1 / inf = 0 for rollouts without a collision
         med = np.median(conflict, axis=0)
-        ttc = {tid: (float(m) if np.isfinite(m) else None) for tid, m in zip(ids, med)}
+        ttc = {tid: None for tid in sorted(states)}
+        ttc.update({tid: (float(m) if np.isfinite(m) else None) for tid, m in zip(ids, med)})
         return RiskEstimate(risk=risk, ttc=ttc, kind=self.score)

@@ -3,15 +3,22 @@
 Road frame of a rollout: ``x`` along the road (m, ego's initial centre at 0),
 ``y`` across it (m, + right, ego's lane centre at 0), lane ``l`` centred at
 ``y = l * lane_width``; vehicles drive in +x. State arrays are ``(S, N)``:
-S rollouts (samples) x N vehicles, vehicle 0 is the ego. Everything is
-vectorised across samples and vehicles; the only Python loop is over time steps.
+S rollouts (samples) x N vehicles, vehicle 0 is the ego (internally
+vehicle-major ``(N, S)``, which keeps each vehicle's samples contiguous). Everything
+is vectorised across samples and vehicles; the only Python loop is over time
+steps. At most ``MAX_VEHICLES`` (61) vehicles, ego included.
 
 Per step (``dt``):
 
-1. every ``mobil_interval_s``: *relink* (lane membership -> leader/follower of
-   every vehicle per lane, by sorting ``lane_code * SPAN + x`` per sample) and
+1. every ``mobil_interval_s``: *relink* -- lane changes that reached their
+   target lane end, one stable sort of the vehicles by ``x`` per sample, lane
+   membership as bitmasks over that order (:class:`_Order`), hence the
+   leader/follower of every vehicle in its own lane and both side lanes -- and
    MOBIL decisions for vehicles that are not changing lane, are out of their
-   cooldown and drive at least ``min_lane_change_speed_mps``;
+   cooldown and drive at least ``min_lane_change_speed_mps``; the lanes of
+   vehicles that start a change are added to the bitmasks (no re-sort: ``x`` is
+   unchanged). Leaders are fixed between relinks. Each rollout is independent
+   of the others (results do not depend on how samples are chunked);
 2. IDM acceleration behind the leader in the current lane; a vehicle changing
    lane also follows the leader in its target lane and takes the smaller of the
    two (as highway-env's ``IDMVehicle.act``); clipped to
@@ -43,9 +50,6 @@ import numpy as np
 
 from monorarp.risk_mc.drivers import DriverParams
 from monorarp.risk_mc.idm import MIN_GAP_M, mobil_safe
-
-SPAN = 1.0e5          # lane code stride of the sort key; |x| stays far below this (m)
-
 
 @dataclass(frozen=True)
 class RolloutConfig:
@@ -277,6 +281,7 @@ def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bo
 
     # vehicle-major state: x, v (N+1, S) with the phantom in row N; y (N, S)
     f = np.dtype(cfg.dtype)
+    zeros = _Zeros(f)
     x = _pad(scene.x, PHANTOM_X, f)
     v = _pad(scene.v, 0.0, f)
     y = np.ascontiguousarray(np.asarray(scene.y, dtype=f).T)
@@ -301,7 +306,7 @@ def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bo
     rec = [] if record else None
 
     order = lead = None
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for k in range(k_steps + 1):
             t = k * dt
             vy = np.subtract(tgt_y, y)
@@ -318,33 +323,43 @@ def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bo
 
             mobil_now = k % mobil_every == 0
             if mobil_now:   # lane membership (lane changes that reached their lane end) and a fresh x order
-                arrived = (tgt != cur) & (np.abs(y - tgt_y) < 1e-3 * W)
-                cur = np.where(arrived, tgt, cur)
+                changing = tgt != cur
+                arrived = changing & (np.abs(y - tgt_y) < 1e-3 * W)
+                if arrived.any():
+                    cur = np.where(arrived, tgt, cur)
+                    changing &= ~arrived
                 order = _Order(x, cfg.lane_min, cfg.lane_max)
-                order.set_lanes(cur, tgt)
-                lead = _flat(order.leaders(np.stack([cur, tgt])), s)   # leader in own lane | target lane
+                slot_cur, slot_tgt = order.slot(cur), order.slot(tgt)
+                order.set_lanes(slot_cur, slot_tgt, changing)
+                if any_mobil:   # leaders in the lanes left, own, right; the target lane's is one of them
+                    lead3 = order.leaders(np.stack([slot_cur - s, slot_cur, slot_cur + s]))
+                    lead = np.stack([lead3[1], np.take(lead3, (tgt - cur + 1) * (n * s) + _cell_index(n, s))])
+                else:
+                    lead = order.leaders(np.stack([slot_cur, slot_tgt]))
             # ---- IDM behind the leader in the current lane and, while changing, the target lane (take the smaller)
             front, rear = x + hl, x - hl
             rear_l, v_l = np.take(rear, lead), np.take(v, lead)                 # (2, N, S)
             free = D.free(v)
-            afree = D.a * (1.0 - free[:n])
-            acc2 = _idm(vn, D.a, afree, D.T, D.c, D.s0, vn - v_l, rear_l - front[:n], cfg.floor_s_star)
+            afree = 1.0 - free[:n]
+            afree *= D.a
+            acc2 = _idm(vn, D.a, afree, D.T, D.c, D.s0, vn - v_l, rear_l - front[:n], cfg.floor_s_star, zeros)
             acc_raw = acc2[0]
             acc = np.minimum(acc2[0], acc2[1])
             if mobil_now and any_mobil:
-                cand = can_mobil & (tgt == cur) & (t - last_change >= cfg.lane_change_cooldown_s) \
-                    & (vn >= cfg.min_lane_change_speed_mps)
-                ok, gain = _mobil(cfg, order, x, v, front, rear, free, D, acc_raw, rear_l[0], v_l[0], cur, cand,
-                                  cfg.floor_s_star)
+                cand = can_mobil & ~changing & (vn >= cfg.min_lane_change_speed_mps)
+                cand &= t - last_change >= cfg.lane_change_cooldown_s
+                ok, gain = _mobil(cfg, order, x, v, front, rear, free, D, acc_raw, afree, lead3, lead[0],
+                                  slot_cur, cur, cand, zeros)
                 d = _choose(ok, gain)
                 change = d != 0
                 if change.any():
-                    tgt = np.where(change, cur + d, tgt)
+                    tgt = tgt + d
                     tgt_y = (tgt * W).astype(f)
                     last_change[change] = t
                     lane_changes += change
-                    order.set_lanes(cur, tgt)
-                    lead = _flat(order.leaders(np.stack([cur, tgt])), s)
+                    slot_tgt = order.slot(tgt)
+                    order.add(slot_tgt, change)
+                    lead = order.leaders(np.stack([slot_cur, slot_tgt]))
             np.clip(acc, -cfg.decel_limit_mps2, cfg.accel_limit_mps2, out=acc)
             # ---- integrate
             if cfg.integrator == "euler":
@@ -354,7 +369,7 @@ def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bo
                 v_new = acc * dt
                 v_new += vn
                 stopping = v_new < 0.0
-                np.maximum(v_new, 0.0, out=v_new)
+                np.maximum(v_new, zeros(v_new.shape), out=v_new)
                 dx = vn + v_new
                 dx *= 0.5 * dt
                 if stopping.any():   # stops inside the step: exact stopping distance v^2 / (2 |a|)
@@ -367,6 +382,17 @@ def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bo
     if record:
         out.x, out.y, out.v = (np.stack([r[i] for r in rec]) for i in range(3))
     return out
+
+
+_CELLS: dict = {}
+
+
+def _cell_index(n: int, s: int) -> np.ndarray:
+    """arange(N*S) as (N, S), cached."""
+    c = _CELLS.get((n, s))
+    if c is None:
+        c = _CELLS[(n, s)] = np.arange(n * s).reshape(n, s)
+    return c
 
 
 def _to_sn(a: np.ndarray, s: int) -> np.ndarray:
@@ -391,50 +417,56 @@ def _conflicts(t, dxl, rvx, dyl, rvy, hx, hy, horizon, conflict_t, collision_t) 
         np.copyto(collision_t, t, where=conflict & (enter <= 0) & (collision_t == np.inf))
 
 
-def _mobil(cfg, order, x, v, front, rear, free, D, acc_self_now, rear_lead, v_lead, cur, cand, floor_s_star):
+def _mobil(cfg, order, x, v, front, rear, free, D, acc_self_now, afree_self, lead3, lead_own, slot_cur, cur, cand,
+           zeros):
     """MOBIL for both side lanes of every vehicle: (ok, gain), each (2, N, S), [left, right].
 
     As in highway-env's ``IDMVehicle.mobil``, the changer evaluates each
     follower's acceleration with its own IDM parameters (a, b, T, s0) and the
-    follower's own desired speed and state. ``rear_lead``/``v_lead`` (N, S):
-    the changer's current leader; ``acc_self_now`` its current IDM acceleration.
+    follower's own desired speed and state. ``lead3`` (3, N, S): flat state
+    indices of the leaders in the lanes left, own, right; ``lead_own`` (N, S) the
+    current leader; ``acc_self_now`` the changer's current IDM acceleration.
     """
     n, s = cur.shape
-    sides = np.stack([cur - 1, cur + 1])
-    new_lead = _flat(order.leaders(sides), s)                                   # (2, N, S)
-    foll = order.followers(np.concatenate([sides, cur[None]]))                  # new -, new +, old
-    foll_f = _flat(foll, s)
-    no_foll = foll == n
+    fs = cfg.floor_s_star
+    new_lead = lead3[0::2]                                                      # (2, N, S)
+    foll = order.followers(np.stack([slot_cur - s, slot_cur + s, slot_cur]))    # new -, new +, old (3, N, S)
+    has_foll = foll < n * s
     a, T, c, s0 = D.a, D.T, D.c, D.s0
     xr_nl, v_nl = np.take(rear, new_lead), np.take(v, new_lead)
-    xf_f, v_f = np.take(front, foll_f), np.take(v, foll_f)                      # (3, N, S)
-    afree_f = a * (1.0 - np.take(free, foll_f))
+    xf_f, v_f = np.take(front, foll), np.take(v, foll)
+    afree_f = 1.0 - np.take(free, foll)
+    afree_f *= a
     vn = v[:n]
     # self behind the new leader
-    a_self_after = _idm(vn, a, a * (1.0 - free[:n]), T, c, s0, vn - v_nl, xr_nl - front[:n], floor_s_star)
+    a_self_after = _idm(vn, a, afree_self, T, c, s0, vn - v_nl, xr_nl - front[:n], fs, zeros)
     # each follower (new -, new +, old) behind self, and behind its other leader (new -, new +, old leader)
-    behind_self = _idm(v_f, a, afree_f, T, c, s0, v_f - vn, rear[:n] - xf_f, floor_s_star)
-    xr_o = np.concatenate([xr_nl, rear_lead[None]])
-    v_o = np.concatenate([v_nl, v_lead[None]])
-    behind_other = _idm(v_f, a, afree_f, T, c, s0, v_f - v_o, xr_o - xf_f, floor_s_star)
-    behind_self[no_foll] = 0.0    # no follower: highway-env's acceleration(None) = 0
-    behind_other[no_foll] = 0.0
+    behind_self = _idm(v_f, a, afree_f, T, c, s0, v_f - vn, rear[:n] - xf_f, fs, zeros)
+    other = np.concatenate([new_lead, lead_own[None]])
+    behind_other = _idm(v_f, a, afree_f, T, c, s0, v_f - np.take(v, other), np.take(rear, other) - xf_f, fs, zeros)
+    behind_self *= has_foll     # no follower: highway-env's acceleration(None) = 0
+    behind_other *= has_foll
     # gain = self + p * (new follower: after - now + old follower: after - now)
-    gain = (behind_self[:2] - behind_other[:2]) + (behind_other[2] - behind_self[2])
+    gain = behind_self[:2] - behind_other[:2]
+    gain += behind_other[2] - behind_self[2]
     gain *= D.p
     gain += a_self_after
     gain -= acc_self_now
     ok = mobil_safe(behind_self[:2], D.b_safe)
     ok &= gain >= D.th
     ok &= cand
-    ok &= (sides >= cfg.lane_min) & (sides <= cfg.lane_max)
+    ok[0] &= cur > cfg.lane_min
+    ok[1] &= cur < cfg.lane_max
     return ok, gain
 
 
 def _choose(ok: np.ndarray, gain: np.ndarray) -> np.ndarray:
     """(N, S) in {-1, 0, +1}: the qualifying side with the larger gain (left on a tie)."""
-    best = np.where(ok, gain, -np.inf)
-    return np.where(ok[0] | ok[1], np.where(best[1] > best[0], 1, -1), 0)
+    right = gain[1] > gain[0]
+    right |= ~ok[0]
+    right &= ok[1]
+    left = ok[0] & ~right
+    return right.astype(np.int64) - left
 
 
 def mobil_sides(scene: Scene, params: DriverParams, cfg: RolloutConfig) -> np.ndarray:
@@ -447,18 +479,23 @@ def mobil_sides(scene: Scene, params: DriverParams, cfg: RolloutConfig) -> np.nd
     s, n = scene.x.shape
     W = cfg.lane_width_m
     f = np.dtype(cfg.dtype)
+    zeros = _Zeros(f)
     x, v = _pad(scene.x, PHANTOM_X, f), _pad(scene.v, 0.0, f)
     hl = np.concatenate([scene.length / 2.0, [0.0]]).astype(f)[:, None]
     D = _Drivers(params, f)
     cur = np.clip(np.rint(np.asarray(scene.y).T / W).astype(np.int64), cfg.lane_min, cfg.lane_max)
     order = _Order(x, cfg.lane_min, cfg.lane_max)
-    order.set_lanes(cur, cur)
-    lead = _flat(order.leaders(cur), s)
+    slot_cur = order.slot(cur)
+    order.set_lanes(slot_cur, slot_cur, np.zeros((n, s), bool))
+    lead3 = order.leaders(np.stack([slot_cur - s, slot_cur, slot_cur + s]))
     front, rear = x + hl, x - hl
     free = D.free(v)
-    rear_l, v_l = np.take(rear, lead), np.take(v, lead)
-    acc_now = _idm(v[:n], D.a, D.a * (1.0 - free[:n]), D.T, D.c, D.s0, v[:n] - v_l, rear_l - front[:n],
-                   cfg.floor_s_star)
-    cand = np.broadcast_to(np.asarray(scene.mobil, bool)[:, None], (n, s)) & (v[:n] >= cfg.min_lane_change_speed_mps)
-    ok, _ = _mobil(cfg, order, x, v, front, rear, free, D, acc_now, rear_l, v_l, cur, cand, cfg.floor_s_star)
+    afree = D.a * (1.0 - free[:n])
+    with np.errstate(over="ignore"):
+        acc_now = _idm(v[:n], D.a, afree, D.T, D.c, D.s0, v[:n] - np.take(v, lead3[1]),
+                       np.take(rear, lead3[1]) - front[:n], cfg.floor_s_star, zeros)
+        cand = np.broadcast_to(np.asarray(scene.mobil, bool)[:, None], (n, s)) \
+            & (v[:n] >= cfg.min_lane_change_speed_mps)
+        ok, _ = _mobil(cfg, order, x, v, front, rear, free, D, acc_now, afree, lead3, lead3[1], slot_cur, cur,
+                       cand, zeros)
     return ok.transpose(0, 2, 1)
