@@ -23,6 +23,9 @@ Definitions (ego and camera frames of :mod:`monorarp.camera`; road frame of
   order rear-left, rear-right, front-right, front-left on the ground, then the
   same four at the roof (left/right as seen by the vehicle itself).
 
+* ``ego.crashed`` / ``crashed``: highway-env's collision flag of the ego / the
+  vehicle (set at the first contact and kept from then on).
+
 One object per vehicle with at least one visible pixel, sorted by id.
 """
 
@@ -77,7 +80,8 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
         "frame": int(world.frame),
         "t": float(world.t),
         "ego": {"speed": float(ego.speed), "x": float(ego.x), "y": float(ego.y),
-                "heading": float(ego.heading), "lane": int(ego.lane)},
+                "heading": float(ego.heading), "lane": int(ego.lane),
+                "crashed": bool(ego.crashed)},
         "objects": [],
     }
     if not vehicles:

@@ -5,9 +5,19 @@ run succeeded; on any failure nothing is left):
 
 * ``metrics.json`` — :func:`harness.scoring.evaluate.evaluate` (nested; NaN -> null);
 * ``per_object.csv`` — estimate and truth side by side per frame and object;
+* ``per_frame.csv`` — per frame: ego speed estimate and truth, risk, its probability, the
+  1/TTC baseline (when the run's risk is another estimator) and the risk label
+  (:func:`harness.scoring.evaluate.frame_rows`);
 * ``annotated.mp4`` — :func:`monorarp.display.draw_frame` on every frame (unless ``annotate=False``);
 * ``frames.mp4``, ``camera.json``, ``ground_truth.jsonl`` — as ``monorarp render`` writes them
   (``frames.mp4`` only with ``write_frames=True``).
+
+Ego speed: an ego-speed stage is told the scenario's marking standard
+(``road.markings``: stripe length, period, width) unless its kwargs set them, as a
+user configures the pipeline for the road it drives on (the estimators' defaults
+are US markings). The risk stage gets the frame's ego-speed estimate when it takes
+one (Monte Carlo); with ``gps_speed=True`` it gets the true ego speed of the frame
+(a GPS-like source) on frames without an estimate.
 
 Timing: frames are rendered into memory first (up to ``preload_bytes``), then
 the pipeline runs over them alone, so ``fps`` = frames / pipeline wall time.
@@ -25,21 +35,22 @@ from pathlib import Path
 from typing import Any
 
 from harness.scenario import Scenario
-from harness.scoring.evaluate import EvalConfig, evaluate, jsonable, write_metrics
+from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows, jsonable, write_frame_csv, write_metrics
 from harness.scoring.records import write_csv
 from harness.scoring.tables import summary_table  # noqa: F401  (re-exported for callers)
 from monorarp.camera import CameraModel
-from monorarp.pipeline import Pipeline, PipelineConfig, run_sync, run_threaded
+from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
 from monorarp.registry import get_factory
-from monorarp.types import Frame, FrameResult
+from monorarp.types import Frame, FrameResult, ObjectState, RiskEstimate
 
 METRICS_NAME = "metrics.json"
 PER_OBJECT_NAME = "per_object.csv"
+PER_FRAME_NAME = "per_frame.csv"
 ANNOTATED_NAME = "annotated.mp4"
 VIDEO_NAME = "frames.mp4"
 CAMERA_NAME = "camera.json"
 GROUND_TRUTH_NAME = "ground_truth.jsonl"
-OUTPUT_NAMES = (METRICS_NAME, PER_OBJECT_NAME, ANNOTATED_NAME, VIDEO_NAME, CAMERA_NAME, GROUND_TRUTH_NAME)
+OUTPUT_NAMES = (METRICS_NAME, PER_OBJECT_NAME, PER_FRAME_NAME, ANNOTATED_NAME, VIDEO_NAME, CAMERA_NAME, GROUND_TRUTH_NAME)
 PRELOAD_BYTES = 1 << 30
 
 
@@ -85,6 +96,44 @@ def describe(cfg: PipelineConfig) -> dict:
             "component_kwargs": {k: jsonable(c.kwargs) for k, c in comps.items() if c is not None and c.kwargs}}
 
 
+def with_scenario_markings(cfg: PipelineConfig, scenario: Scenario) -> PipelineConfig:
+    """``cfg`` with the ego-speed stage told the scenario's marking dimensions (unless its kwargs set them)."""
+    if cfg.ego_speed is None:
+        return cfg
+    m = scenario.road.markings
+    kw = {"stripe_length_m": m.stripe_length_m, "period_m": m.period_m, "marking_width_m": m.width_m,
+          **cfg.ego_speed.kwargs}
+    return cfg.model_copy(update={"ego_speed": ComponentConfig(name=cfg.ego_speed.name, kwargs=kw)})
+
+
+class GpsFallbackRisk:
+    """Risk stage wrapper: ``ego_speed`` = the pipeline's estimate, else the frame's true ego speed (GPS-like).
+
+    ``speeds`` maps frame time (s) to the true ego speed (m/s); the harness fills it
+    before the frame enters the pipeline.
+    """
+
+    def __init__(self, inner: Any, speeds: Mapping[float, float]) -> None:
+        self.inner, self.speeds = inner, speeds
+
+    def reset(self) -> None:
+        if hasattr(self.inner, "reset"):
+            self.inner.reset()
+
+    def assess(self, states: dict[int, ObjectState], t: float, ego_speed: float | None = None) -> RiskEstimate:
+        if ego_speed is None:
+            ego_speed = self.speeds.get(t)
+        return self.inner.assess(states, t, ego_speed=ego_speed)
+
+
+def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[RiskEstimate] | None:
+    """The paper's 1/TTC risk on the same states, when the run's risk estimator is another one (else None)."""
+    if all(r.risk.kind == "inverse_ttc" for r in results):
+        return None
+    ttc = _instantiate(get_factory("risk", "ttc"), {}, camera)
+    return [ttc.assess(r.states, r.t) for r in results]
+
+
 # ------------------------------------------------------------------------------ frames
 def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator[tuple[Frame, dict]]:
     """(Frame, truth dict) of each simulated frame; the simulation is set up before the first yield."""
@@ -116,22 +165,29 @@ def _chain(first, rest):
 def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, n_frames: int | None = None,
                  out_dir: str | Path | None = None, threaded: bool = False, annotate: bool = True,
                  eval_config: EvalConfig = EvalConfig(), write_frames: bool = True,
-                 preload_bytes: int = PRELOAD_BYTES) -> dict:
+                 preload_bytes: int = PRELOAD_BYTES, gps_speed: bool = False) -> dict:
     """Simulate, render, run the pipeline and score ``scenario``; returns the metrics dict (NaN kept).
 
     ``n_frames`` defaults to the scenario's duration x fps. With ``out_dir`` the
-    files of the module docstring are written atomically.
+    files of the module docstring are written atomically. ``gps_speed``: a risk
+    stage that takes the ego speed gets the true one on frames without an estimate.
     """
     cfg = pipeline_config if isinstance(pipeline_config, PipelineConfig) else \
         PipelineConfig.model_validate(pipeline_config)
+    cfg = with_scenario_markings(cfg, scenario)
     camera = scenario.camera.model()
     pipeline = build_pipeline(cfg, camera)     # bad component names / model files fail before any output
+    true_speeds: dict[float, float] = {}
+    from monorarp.pipeline import _takes_ego_speed
+
+    if gps_speed and _takes_ego_speed(pipeline.risk):
+        pipeline.risk = GpsFallbackRisk(pipeline.risk, true_speeds)
     n = scenario.n_frames if n_frames is None else int(n_frames)
     source = rendered_frames(scenario, n)
     preload = n * camera.width * camera.height * 3 <= preload_bytes
     run_info = {"scenario": scenario.name, "seed": scenario.seed, "fps_scenario": scenario.fps,
                 "camera": {"width": camera.width, "height": camera.height}, **describe(cfg),
-                "threaded": bool(threaded), "fps_includes_render": not preload}
+                "threaded": bool(threaded), "fps_includes_render": not preload, "gps_speed": bool(gps_speed)}
 
     from harness.output import JsonlWriter, atomic_output_dir, write_json_atomic
     from harness.video import VideoWriter
@@ -154,6 +210,7 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
         def frames() -> Iterator[Frame]:
             for frame, truth in source:
                 truths[frame.index] = truth
+                true_speeds[frame.t] = float(truth["ego"]["speed"])
                 images[frame.index] = frame.image
                 if truth_out is not None:
                     truth_out.write(truth)
@@ -187,9 +244,27 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
                 annotate_result(res)
 
         ordered = [truths[r.index] for r in results]
+        baseline = baseline_ttc_risk(results, camera)
         metrics, records = evaluate(ordered, results, eval_config, wall_time_s=wall, run_info=run_info,
-                                    camera=camera)
+                                    camera=camera, baseline_risk=baseline,
+                                    ego_speed_method=None if cfg.ego_speed is None else cfg.ego_speed.name)
+        metrics["risk"]["ego_speed_sources"] = _ego_speed_sources(results, pipeline, gps_speed)
         if tmp:
             write_metrics(metrics, tmp / METRICS_NAME)
             write_csv(records, tmp / PER_OBJECT_NAME)
+            write_frame_csv(frame_rows(ordered, results, eval_config, baseline), tmp / PER_FRAME_NAME)
     return metrics
+
+
+def _ego_speed_sources(results: list[FrameResult], pipeline: Pipeline, gps_speed: bool) -> dict[str, int] | None:
+    """Frames whose risk stage got the ego speed from the estimator / the true speed / its own setting.
+
+    None when the risk stage takes no ego speed (the 1/TTC risk works on relative velocities).
+    """
+    from monorarp.pipeline import _takes_ego_speed
+
+    if not _takes_ego_speed(pipeline.risk):
+        return None
+    n_est = sum(r.ego_speed is not None for r in results)
+    rest = len(results) - n_est
+    return {"estimator": n_est, "gps": rest if gps_speed else 0, "risk_default": 0 if gps_speed else rest}

@@ -7,7 +7,8 @@ Stage interfaces (any object with these methods works; built-ins come from
 * ego_speed ``update(image, t) -> float | None`` (optional; m/s)
 * tracker   ``update(image, detections, t) -> list[Track]``
 * state     ``update(tracks, t) -> dict[int, ObjectState]``
-* risk      ``assess(states, t) -> RiskEstimate``
+* risk      ``assess(states, t) -> RiskEstimate``; when it takes an ``ego_speed``
+  keyword (m/s or None), it gets the frame's ego-speed estimate (same frame, both runners)
 
 Two runners give identical outputs on offline input: :func:`run_sync` (one
 thread, frame after frame) and :func:`run_threaded` (each stage on its own
@@ -113,7 +114,11 @@ class Pipeline:
         return rec
 
     def _risk(self, rec: dict) -> dict:
-        rec["risk"] = _timed(rec, "risk", self.risk.assess, rec["states"], rec["frame"].t)
+        if _takes_ego_speed(self.risk):   # e.g. the Monte Carlo estimator: absolute speeds need the ego's
+            rec["risk"] = _timed(rec, "risk", lambda s, t: self.risk.assess(s, t, ego_speed=rec["ego_speed"]),
+                                 rec["states"], rec["frame"].t)
+        else:
+            rec["risk"] = _timed(rec, "risk", self.risk.assess, rec["states"], rec["frame"].t)
         return rec
 
     @property
@@ -135,6 +140,17 @@ def _takes(factory: Callable, name: str) -> bool:
         return name in inspect.signature(factory).parameters
     except (TypeError, ValueError):
         return False
+
+
+_TAKES_EGO_SPEED: dict[type, bool] = {}
+
+
+def _takes_ego_speed(risk: Any) -> bool:
+    """Does ``risk.assess`` accept an ``ego_speed`` keyword? (cached per class)"""
+    cls = type(risk)
+    if cls not in _TAKES_EGO_SPEED:
+        _TAKES_EGO_SPEED[cls] = _takes(risk.assess, "ego_speed")
+    return _TAKES_EGO_SPEED[cls]
 
 
 def _timed(rec: dict, key: str, fn: Callable, *args: Any) -> Any:

@@ -66,7 +66,12 @@ projects closest to the centre column), at ``d_y + L`` with an assumed length
 ``L = vehicle_length_m`` (4.5 m) and the front bumper's lower edge
 (``ground_clearance_m``) for the row (matters only with pitch):
 ``d_x = (u_near - c_x) / F * Z_cam(d_y + L) +- W_r / 2`` (+ for a vehicle to the
-right). For a box straddling the centre column (only the rear face visible) with
+right). The estimator learns, per track, the offset between the far-edge and the
+near-edge readings while the box is whole (the vehicle's real length and width
+against the assumed ones) and adds it once the far edge is cut, so the switch
+makes no jump. When the rear contact line's inner end is itself out of view,
+the box bottom is no longer the contact line: the distance is not measured.
+For a box straddling the centre column (only the rear face visible) with
 one side cut, the other side is a rear corner: ``d_x = x(u_edge, d_y) -+ W_r / 2``.
 With both sides cut the lateral distance is not measured (the filter predicts;
 differencing holds the last value). A box whose bottom edge touches the
@@ -160,20 +165,52 @@ def lateral_terms(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float
                                        np.ones_like(u)], axis=-1))
     with np.errstate(divide="ignore", invalid="ignore"):
         a = rays[:, 0] / rays[:, 1]
-    bb = np.zeros_like(a)
-    # Beside the centre line with the far edge cut: the near edge, the inner side's front lower corner,
-    # on the plane y = d_y + L at height ground_clearance: x = (u - cx) / fx * Z_cam.
+    far = np.stack([a, np.zeros_like(a), c], axis=1)
+    # Beside the centre line with the far edge cut: the near edge instead.
     near = (right & cut_r) | (left & cut_l)
-    R = camera.R_cam_from_ego
-    z_corner = -camera.height_m + ground_clearance_m                 # ego frame: origin at the camera
-    u_n = np.where(right, x1, x2)
-    a = np.where(near, (u_n - cx) / camera.fx * R[2, 1], a)
-    bb = np.where(near, vehicle_length_m + R[2, 2] * z_corner / R[2, 1], bb)
-    c = np.where(near, np.where(right, half, -half), c)
-    bad = (near & cut_l & cut_r) | (straddle & cut_l & cut_r)
-    out = np.stack([a, bb, c], axis=1)
-    out[bad] = np.nan
+    out = np.where(near[:, None], near_edge_terms(camera, b, vehicle_width_m, vehicle_length_m,
+                                                  ground_clearance_m), far)
+    out[straddle & cut_l & cut_r] = np.nan
     return out
+
+
+def near_edge_terms(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float = 1.8,
+                    vehicle_length_m: float = 4.5, ground_clearance_m: float = 0.17) -> np.ndarray:
+    """(M, 3) lateral terms (see :func:`lateral_terms`) from each box's *near* edge; NaN for straddling boxes.
+
+    The near edge of a vehicle beside the centre line is its inner side's front lower corner,
+    on the plane ``y = d_y + L`` at height ``ground_clearance_m``: ``x = (u - c_x) / f_x Z_cam``.
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    x1, x2 = b[:, 0], b[:, 2]
+    right, left = x1 > camera.cx, x2 < camera.cx
+    R = camera.R_cam_from_ego                                        # Z_cam = R[2,1] y + R[2,2] z
+    z_corner = -camera.height_m + ground_clearance_m                 # ego frame: origin at the camera
+    a = (np.where(right, x1, x2) - camera.cx) / camera.fx * R[2, 1]
+    bb = np.full_like(a, vehicle_length_m + R[2, 2] * z_corner / R[2, 1])
+    c = np.where(right, vehicle_width_m / 2, -vehicle_width_m / 2)
+    out = np.stack([a, bb, c], axis=1)
+    out[~(right | left)] = np.nan
+    return out
+
+
+def contact_line_cut(camera: CameraModel, boxes: np.ndarray, d_x: np.ndarray, d_y: np.ndarray,
+                     vehicle_width_m: float = 1.8, contact_offset_m: float = 0.95,
+                     border_tol_px: float | None = 1.0) -> np.ndarray:
+    """(M,) True where the far edge is cut and the rear contact line's inner end is out of view.
+
+    Then no part of the tyres' contact line is in the image and the box's bottom edge is some
+    other point of the vehicle's underside at the border: equation 3 does not apply.
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    cut_l, cut_r, _ = border_flags(camera, b, border_tol_px).T
+    right, left = b[:, 0] > camera.cx, b[:, 2] < camera.cx
+    x_in = d_x - np.sign(d_x) * vehicle_width_m / 2
+    pts = np.stack([x_in, d_y + contact_offset_m, np.full_like(d_y, -camera.height_m)], axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = camera.project_ego(pts)[:, 0]
+    tol = 0.0 if border_tol_px is None else border_tol_px
+    return (right & cut_r & ~(u < camera.width - 0.5 - tol)) | (left & cut_l & ~(u > -0.5 + tol))
 
 
 def lateral_from_terms(terms: np.ndarray, d_y: np.ndarray) -> np.ndarray:
@@ -187,13 +224,15 @@ def measure_boxes(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float
     """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` in the ego frame (m).
 
     NaN where a box does not give the value: not below the horizon, bottom edge on the
-    image border (both NaN), both sides on the border (``d_x`` NaN). ``border_tol_px=None``
+    image border or contact line out of view (both NaN), both sides on the border (``d_x`` NaN). ``border_tol_px=None``
     treats every box as whole. See the module docstring for the geometry.
     """
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     d_y = box_distance(camera, b, contact_offset_m, ground_clearance_m, border_tol_px)
     terms = lateral_terms(camera, b, vehicle_width_m, vehicle_length_m, ground_clearance_m, border_tol_px)
-    return np.stack([lateral_from_terms(terms, d_y), d_y], axis=1)
+    d_x = lateral_from_terms(terms, d_y)
+    gone = contact_line_cut(camera, b, d_x, d_y, vehicle_width_m, contact_offset_m, border_tol_px)
+    return np.where(gone[:, None], np.nan, np.stack([d_x, d_y], axis=1))
 
 
 # ---------------------------------------------------------------------------- filtering
@@ -277,18 +316,40 @@ class StateEstimator:
         self._state: dict[int, tuple[np.ndarray, np.ndarray] | np.ndarray] = {}
         self._t: dict[int, float] = {}
         self._coast: dict[int, int] = {}
+        self._near_offset: dict[int, float] = {}   # per track: far-edge minus near-edge lateral reading (m)
 
     def measure(self, boxes: np.ndarray) -> np.ndarray:
         """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` (m) with this estimator's geometry parameters."""
         return measure_boxes(self.camera, boxes, self.vehicle_width_m, self.contact_offset_m,
                              self.ground_clearance_m, self.vehicle_length_m, self.border_tol_px)
 
-    def _terms(self, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Measured ``d_y`` (M,) and the lateral terms (M, 3) of :func:`lateral_terms`."""
+    def _terms(self, ids: list[int], boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Measured ``d_y`` (M,) and the lateral terms (M, 3) of :func:`lateral_terms`, per-track calibrated.
+
+        While a box beside the centre line is whole, the offset between its far-edge and near-edge
+        lateral readings (from the vehicle's true length and width differing from the assumed ones)
+        is learnt per track (running mean); once the far edge is cut, the near-edge reading is
+        shifted by it, so switching edges makes no jump (which would read as lateral velocity).
+        """
         d_y = box_distance(self.camera, boxes, self.contact_offset_m, self.ground_clearance_m, self.border_tol_px)
         terms = lateral_terms(self.camera, boxes, self.vehicle_width_m, self.vehicle_length_m,
                               self.ground_clearance_m, self.border_tol_px)
-        return d_y, terms
+        near = near_edge_terms(self.camera, boxes, self.vehicle_width_m, self.vehicle_length_m,
+                               self.ground_clearance_m)
+        flags = border_flags(self.camera, boxes, self.border_tol_px)
+        whole = ~flags[:, 0] & ~flags[:, 1] & np.isfinite(near[:, 0]) & np.isfinite(d_y)
+        right, left = boxes[:, 0] > self.camera.cx, boxes[:, 2] < self.camera.cx
+        uses_near = (right & flags[:, 1]) | (left & flags[:, 0])
+        offset = lateral_from_terms(terms, d_y) - lateral_from_terms(near, d_y)
+        for j, i in enumerate(ids):
+            if whole[j]:
+                old = self._near_offset.get(i)
+                self._near_offset[i] = offset[j] if old is None else old + 0.3 * (offset[j] - old)
+            elif uses_near[j] and i in self._near_offset:
+                terms[j, 2] += self._near_offset[i]
+        gone = contact_line_cut(self.camera, boxes, lateral_from_terms(terms, d_y), d_y, self.vehicle_width_m,
+                                self.contact_offset_m, self.border_tol_px)
+        return np.where(gone, np.nan, d_y), terms
 
     def measurement_var(self, z: np.ndarray) -> np.ndarray:
         """(M, 2) variances (m^2) of measured (d_x, d_y): ``pixel_std`` through equations 3 and 4.
@@ -305,13 +366,13 @@ class StateEstimator:
         """Estimate every usable track's relative state at frame time ``t`` (s)."""
         t = float(t)
         for tid in [k for k, tk in self._t.items() if t - tk > self.forget_s]:
-            self._state.pop(tid), self._t.pop(tid)
+            self._state.pop(tid), self._t.pop(tid), self._near_offset.pop(tid, None)
         self._coast = {tr.id: self._coast.get(tr.id, 0) + 1 if tr.coasting else 0 for tr in tracks}
         usable = [tr for tr in tracks if self._coast[tr.id] <= self.max_coast_used]
         if not usable:
             return {}
         ids = [tr.id for tr in usable]
-        d_y, terms = self._terms(np.array([tr.box for tr in usable], dtype=float))
+        d_y, terms = self._terms(ids, np.array([tr.box for tr in usable], dtype=float))
         coasting = np.array([tr.coasting for tr in usable])
         known = np.array([i in self._state for i in ids])
         # A new track needs both coordinates from its box; a known one is output in any case

@@ -134,3 +134,52 @@ def test_ego_speed_stage_runs_in_both_runners():
     for runner in (run_sync, run_threaded):
         res = list(runner(build(), frames(4)))
         assert [r.ego_speed for r in res] == [20.0 + k / 30.0 for k in range(4)]
+
+
+class RecordingRisk:
+    """Risk stage that takes the ego speed: records what it got and returns it as the risk."""
+
+    def __init__(self) -> None:
+        self.got: list[tuple[float, float | None]] = []
+
+    def assess(self, states, t, ego_speed=None):
+        from monorarp.types import RiskEstimate
+
+        self.got.append((t, ego_speed))
+        return RiskEstimate(risk=0.0 if ego_speed is None else ego_speed, kind="probability")
+
+
+class SlowEgoSpeed(FakeEgoSpeed):
+    """None on the first frame (no estimate yet), then 20 + t, with a jittered delay."""
+
+    def update(self, image, t):
+        import time
+
+        time.sleep(0.001 * (int(image[0, 0, 0]) % 3))
+        return None if t == 0.0 else 20.0 + t
+
+
+def test_risk_stage_gets_the_same_frames_ego_speed_in_both_runners():
+    for runner in (run_sync, run_threaded):
+        p = make()
+        p.ego_speed, p.risk = SlowEgoSpeed(), RecordingRisk()
+        res = list(runner(p, frames(12)))
+        expected = [None] + [20.0 + k / 30.0 for k in range(1, 12)]
+        assert [e for _, e in p.risk.got] == expected
+        assert [r.risk.risk for r in res] == [0.0] + expected[1:]
+
+
+def test_monte_carlo_threaded_equals_sync_with_ego_speed():
+    from monorarp.risk_mc import MonteCarloRisk
+
+    def build():
+        p = make()
+        p.ego_speed, p.risk = FakeEgoSpeed(), MonteCarloRisk(n_rollouts=50, seed=2)
+        return p
+    sync = list(run_sync(build(), frames(15)))
+    threaded = list(run_threaded(build(), frames(15), queue_size=2))
+    assert [strip(r) for r in sync] == [strip(r) for r in threaded]
+    # The ego speed reaches it as the assess() argument (not its configured or fallback speed).
+    p = build()
+    list(run_sync(p, frames(3)))
+    assert p.risk.ego_speed_source == "argument"

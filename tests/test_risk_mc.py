@@ -6,9 +6,14 @@ mapping: highway-env measures gaps centre to centre and its jam distance
 gaps, so a highway-env scene maps onto ours with vehicle length 0 and
 ``s0 = DISTANCE_WANTED``; ``COMFORT_ACC_MAX = a``, ``-COMFORT_ACC_MIN = b``,
 ``TIME_WANTED = T``, ``DELTA = delta``, ``target_speed = v0``.
+
+Rollout tests run on both backends (``numpy`` and, when numba is importable,
+``numba``); the two are also compared with each other on whole estimator scenes.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -20,9 +25,17 @@ from monorarp.risk_mc import MonteCarloRisk
 from monorarp.risk_mc.drivers import DriverDistribution, DriverParams, Truncated
 from monorarp.risk_mc.idm import idm_acceleration
 from monorarp.risk_mc.rollout import RolloutConfig, Scene, mobil_sides, simulate
+from monorarp.risk_mc.rollout_numba import NUMBA_AVAILABLE, simulate_numba
 from monorarp.types import ObjectState
 
 LANE_W = 4.0  # highway-env's lane width
+
+BACKENDS = ["numpy", pytest.param("numba", marks=pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba missing"))]
+needs_numba = pytest.mark.skipif(not NUMBA_AVAILABLE, reason="numba not importable")
+
+
+def _sim(backend: str):
+    return simulate_numba if backend == "numba" else simulate
 
 
 def _road(lanes: int, seed: int = 0) -> Road:
@@ -92,7 +105,7 @@ def _highway_one_lane(dt: float, steps: int):
     return np.array(traj_x), np.array(traj_v)
 
 
-def _ours_one_lane(dt: float, steps: int, integrator: str):
+def _ours_one_lane(dt: float, steps: int, integrator: str, backend: str = "numpy"):
     xs, vs, v0s = _one_lane_case()
     n = len(xs)
     scene = Scene(x=xs[None], y=np.zeros((1, n)), v=vs[None], target_lane=np.zeros((1, n), int),
@@ -100,27 +113,32 @@ def _ours_one_lane(dt: float, steps: int, integrator: str):
     params = DriverParams.uniform((1, n), v0=v0s[None], a=3.0, b=5.0, T=1.5, s0=10.0)
     cfg = RolloutConfig(dt=dt, horizon_s=steps * dt, lane_width_m=LANE_W, integrator=integrator,
                         floor_s_star=False, accel_limit_mps2=6.0, decel_limit_mps2=6.0)
-    res = simulate(scene, params, cfg, record=True)
+    res = _sim(backend)(scene, params, cfg, record=True)
     return res.x[:, 0], res.v[:, 0]
 
 
-def test_car_following_rollout_matches_highway_env_road_stepping():
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_car_following_rollout_matches_highway_env_road_stepping(backend):
     dt, steps = 0.1, 60
     hx, hv = _highway_one_lane(dt, steps)
     assert np.abs(np.diff(hv, axis=0)).max() > 0.05   # the vehicles really interact
     # Same integrator as highway-env's Vehicle.step on a straight lane (x += v dt, then v += a dt):
-    ex, ev = _ours_one_lane(dt, steps, "euler")
+    ex, ev = _ours_one_lane(dt, steps, "euler", backend)
     np.testing.assert_allclose(ex, hx, atol=1e-6)
     np.testing.assert_allclose(ev, hv, atol=1e-6)
     # Our default ballistic scheme differs by O(a dt^2 / 2) per step: |dx| <= sum |a| dt^2 / 2 <= 6 * 6 s * 0.1 / 2.
-    bx, bv = _ours_one_lane(dt, steps, "ballistic")
+    bx, bv = _ours_one_lane(dt, steps, "ballistic", backend)
     assert np.abs(bx - hx).max() < 0.6
     assert np.abs(bv - hv).max() < 0.3
 
 
 # ----------------------------------------------------------------------------- (c) MOBIL decisions
-def _mobil_compare(cars, lanes: int):
-    """cars: list of dicts(x, lane, v, v0, a, b, T, s0, p, th, bsafe). Returns (ours (2, N), theirs (2, N))."""
+def _mobil_compare(cars, lanes: int, backend: str | None = None):
+    """cars: list of dicts(x, lane, v, v0, a, b, T, s0, p, th, bsafe). Returns (ours (2, N), theirs (2, N)).
+
+    ``backend=None``: ours from :func:`mobil_sides`; else ours is the direction (N,) in {-1, 0, +1} of the
+    lane change each vehicle starts in the first step of a rollout on that backend.
+    """
     road = _road(lanes)
     vehs = [_hw_vehicle(road, 50.0 + c["x"], c["lane"], c["v"], c["v0"], c["a"], c["b"], c["T"], c["s0"],
                         c["p"], c["th"], c["bsafe"]) for c in cars]
@@ -137,7 +155,13 @@ def _mobil_compare(cars, lanes: int):
     params = DriverParams(v0=col("v0"), T=col("T"), s0=col("s0"), a=col("a"), b=col("b"), politeness=col("p"),
                           threshold=col("th"), b_safe=col("bsafe"))
     cfg = RolloutConfig(lane_width_m=LANE_W, lane_min=0, lane_max=lanes - 1, floor_s_star=False)
-    return mobil_sides(scene, params, cfg)[:, 0], theirs
+    if backend is None:
+        return mobil_sides(scene, params, cfg)[:, 0], theirs
+    res = _sim(backend)(scene, params, replace(cfg, horizon_s=2 * cfg.dt), record=True)
+    # cars start on lane centres (no drift); lateral motion starts the step after the decision at t = 0
+    direction = np.sign(res.y[2, 0] - res.y[1, 0]).astype(int)
+    np.testing.assert_array_equal(res.lane_changes[0], np.abs(direction))
+    return direction, theirs
 
 
 def _car(x, lane, v, v0, **kw):
@@ -180,6 +204,32 @@ def test_mobil_random_scenes_agree_with_highway_env():
         changes += int(theirs.sum())
     assert changes > 10          # the sample contains plenty of positive decisions
     assert agree == total
+
+
+def _random_mobil_scenes(n_scenes: int, seed: int):
+    rng = np.random.default_rng(seed)
+    for _ in range(n_scenes):
+        n, lanes = int(rng.integers(2, 7)), int(rng.integers(2, 4))
+        xs = rng.permutation(np.arange(n) * 22.0 + rng.uniform(0, 8, n))   # distinct positions
+        yield [_car(float(xs[i]), int(rng.integers(0, lanes)), float(rng.uniform(8, 32)),
+                    float(rng.uniform(15, 35)), a=rng.uniform(0.5, 3), b=rng.uniform(1, 5),
+                    T=rng.uniform(0.8, 2.5), s0=rng.uniform(6, 12), p=rng.uniform(0, 1),
+                    th=rng.uniform(0.05, 0.5), bsafe=rng.uniform(1.5, 5)) for i in range(n)], lanes
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_rollout_lane_changes_follow_highway_env_mobil(backend):
+    """The rollout's first MOBIL step starts a change exactly where highway-env's ``mobil`` approves a side;
+    with one side approved it is that side (with both, ours takes the larger gain, highway-env the first)."""
+    n_change = n_single = 0
+    for cars, lanes in _random_mobil_scenes(40, 7):
+        direction, theirs = _mobil_compare(cars, lanes, backend)
+        np.testing.assert_array_equal(direction != 0, theirs.any(axis=0))
+        single = theirs[0] ^ theirs[1]
+        np.testing.assert_array_equal(direction[single], np.where(theirs[1], 1, -1)[single])
+        n_change += int((direction != 0).sum())
+        n_single += int(single.sum())
+    assert n_change > 10 and n_single > 5
 
 
 # ----------------------------------------------------------------------------- drivers
@@ -320,7 +370,7 @@ def test_rollout_idm_kernel_equals_reference_idm():
 def test_rollouts_do_not_depend_on_chunking(monkeypatch):
     import monorarp.risk_mc.rollout as rollout
 
-    est = MonteCarloRisk(n_rollouts=120, seed=2, dtype="float64")
+    est = MonteCarloRisk(n_rollouts=120, seed=2, dtype="float64", backend="numpy")   # chunking is numpy's
     scene = {i: _state(i, float(np.array([-3.7, 0.0, 3.7])[i % 3]), 8.0 + 9.0 * i, 0.1 * (i % 2), -4.0 + i)
              for i in range(1, 9)}
     whole = est.assess(scene, 0.0, ego_speed=25.0)
@@ -343,3 +393,113 @@ def test_more_tracks_than_the_rollout_limit():
     assert set(r.ttc) == set(states)
     assert r.ttc[999] is not None and r.risk > 0.9
     assert r.ttc[n] is None                                  # the farthest were left out
+
+
+# ----------------------------------------------------------------------------- backends
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_contact_test_matches_closed_form_ttc(backend):
+    """The per-step conflict test (with the numba pre-filter) against :func:`monorarp.ttc.time_to_collision`.
+
+    dt = 1.5 s > near_miss = 1 s: a conflict seen at t = 0 is recorded as its contact time (< 1 s), one
+    seen only at the next step as >= 1.5 s, so the first step's verdict is read off ``conflict_t``.
+    """
+    from monorarp.ttc import time_to_collision
+
+    rng = np.random.default_rng(3)
+    s, W, dt = 6000, 3.7, 1.5
+    cfg = RolloutConfig(dt=dt, horizon_s=dt, lane_width_m=W, lane_min=-2, lane_max=2, lane_change_duration_s=W,
+                        near_miss_ttc_s=1.0)
+    lanes = rng.integers(-1, 2, (s, 2))
+    lanes[:, 0] = 0
+    y = lanes * W + rng.uniform(-0.5, 0.5, (s, 2))
+    tgt = lanes + rng.integers(-1, 2, (s, 2)) * (rng.random((s, 2)) < 0.5)
+    x = np.stack([np.zeros(s), rng.uniform(-25.0, 25.0, s)], axis=1)
+    v = np.stack([np.full(s, 25.0), 25.0 + rng.uniform(-20.0, 20.0, s)], axis=1)
+    v[::7, 1] = 25.0                                                  # no relative speed along the road
+    length, width = np.array([4.5, 4.0]), np.array([1.8, 2.0])
+    scene = Scene(x=x, y=y, v=v, target_lane=tgt, length=length, width=width, mobil=np.zeros(2, bool))
+    res = _sim(backend)(scene, DriverParams.uniform((s, 2), v0=30.0), cfg)
+    # lateral speeds at t = 0: towards the target lane centre at W / duration = 1 m/s, slower within the step
+    vy = np.clip((tgt * W - y) / dt, -1.0, 1.0)
+    ref = time_to_collision(y[:, 1] - 1.0, y[:, 1] + 1.0, x[:, 1] - 2.0, x[:, 1] + 2.0,
+                            vy[:, 1] - vy[:, 0], v[:, 1] - v[:, 0], (y[:, 0] - 0.9, y[:, 0] + 0.9),
+                            (-2.25, 2.25), horizon_s=1.0)
+    hit = np.isfinite(ref)
+    assert 0.1 < hit.mean() < 0.9
+    np.testing.assert_allclose(res.conflict_t[hit, 1], ref[hit], rtol=0, atol=1e-9)
+    assert (res.conflict_t[~hit, 1] >= dt).all()
+    np.testing.assert_array_equal(res.collision_t[:, 1] == 0.0, ref == 0.0)
+    assert np.isinf(res.conflict_t[:, 0]).all()                       # the ego's own column
+
+
+def _parity_scenes():
+    """(name, states, ego speed, lanes_left, lanes_right): free flow, cut-ins, a stopped car, dense traffic."""
+    rng = np.random.default_rng(21)
+    dense = {i: _state(i, float([-3.7, 0.0, 3.7][i % 3] + rng.normal(0, 0.3)), float(rng.uniform(6, 90)),
+                       float(rng.normal(0, 0.3)), float(rng.normal(-2, 4))) for i in range(1, 21)}
+    mixed = {i: _state(i, float([-3.7, 0.0, 3.7][i % 3] + rng.normal(0, 0.3)), float(rng.uniform(8, 100)),
+                       float(rng.normal(0, 0.2)), float(rng.normal(0, 3))) for i in range(1, 11)}
+    cut_in = {1: _state(1, 3.2, 9.0, v_x=-0.8, v_y=-3.0), 2: _state(2, 0.0, 45.0, v_y=-6.0),
+              3: _state(3, -3.7, -12.0, v_y=4.0), 4: _state(4, -3.7, 25.0, v_x=0.5, v_y=-1.0)}
+    stopped = {7: _state(7, 0.0, 30.0, v_y=-25.0), 8: _state(8, 3.7, 15.0, v_y=-2.0), 9: _state(9, -3.7, 5.0)}
+    return [("mixed", mixed, 25.0, 1, 1), ("dense", dense, 28.0, 1, 1), ("cut_in", cut_in, 30.0, 1, 1),
+            ("stopped", stopped, 25.0, 1, 1), ("two_lanes", cut_in, 20.0, 0, 1)]
+
+
+@needs_numba
+@pytest.mark.parametrize("score", ["probability", "inverse_ttc"])
+def test_numba_and_numpy_backends_agree(score):
+    """Same draws (made in numpy before either kernel), same futures up to floating-point rounding."""
+    s_total = lanes = conflicts = 0
+    for name, states, v_e, left, right in _parity_scenes():
+        kw = dict(n_rollouts=400, seed=5, dtype="float64", score=score, lanes_left=left, lanes_right=right)
+        a, b = MonteCarloRisk(backend="numpy", **kw), MonteCarloRisk(backend="numba", **kw)
+        assert (a.backend, b.backend) == ("numpy", "numba")
+        ra, rb = a.assess(states, 0.0, ego_speed=v_e), b.assess(states, 0.0, ego_speed=v_e)
+        pa, pb = a.last_result, b.last_result
+        fa, fb = np.isfinite(pa.conflict_t[:, 1:]).any(1), np.isfinite(pb.conflict_t[:, 1:]).any(1)
+        assert (fa == fb).mean() >= 0.99, name
+        if score == "probability":
+            p = 0.5 * (ra.risk + rb.risk)
+            assert abs(ra.risk - rb.risk) <= np.sqrt(p * (1 - p) / 400), name      # one binomial SE
+        else:
+            assert ra.risk == pytest.approx(rb.risk, rel=0.05, abs=1e-3), name
+        for t_a, t_b in ((pa.conflict_t, pb.conflict_t), (pa.collision_t, pb.collision_t)):
+            both = np.isfinite(t_a) & np.isfinite(t_b)
+            np.testing.assert_allclose(t_a[both], t_b[both], rtol=0, atol=1e-6, err_msg=name)
+            assert (np.isfinite(t_a) == np.isfinite(t_b)).mean() >= 0.99, name
+        assert (pa.lane_changes == pb.lane_changes).mean() >= 0.99, name
+        assert ra.ttc.keys() == rb.ttc.keys()
+        s_total += 400
+        lanes += int(pa.lane_changes.sum())
+        conflicts += int(fa.sum())
+    assert lanes > 1000 and 200 < conflicts < s_total - 200     # lane changes and conflicts both exercised
+
+
+@needs_numba
+def test_numba_records_the_same_trajectories():
+    est = MonteCarloRisk(n_rollouts=60, seed=1, dtype="float64", backend="numpy", lanes_left=1, lanes_right=1)
+    _, states, v_e, _, _ = _parity_scenes()[1]
+    scene, params = est.build(states, v_e)
+    lo, hi = est._lanes
+    cfg = replace(est.config, lane_min=lo, lane_max=hi)
+    a, b = simulate(scene, params, cfg, record=True), simulate_numba(scene, params, cfg, record=True)
+    assert a.x.shape == b.x.shape == (cfg.n_steps + 1, 60, len(states) + 1)
+    for f in ("x", "y", "v"):
+        np.testing.assert_allclose(getattr(b, f), getattr(a, f), rtol=0, atol=1e-6)
+    assert np.ptp(a.y) > 3.0                                           # vehicles do change lanes
+
+
+def test_backend_option(monkeypatch):
+    import monorarp.risk_mc.rollout_numba as rn
+    from monorarp.errors import UserError
+    from monorarp.risk_mc.estimator import MonteCarloConfigError
+
+    assert MonteCarloRisk(n_rollouts=8, backend="numpy").backend == "numpy"
+    assert MonteCarloRisk(n_rollouts=8).backend == ("numba" if NUMBA_AVAILABLE else "numpy")
+    with pytest.raises(UserError, match="backend"):
+        MonteCarloRisk(n_rollouts=8, backend="cuda")
+    monkeypatch.setattr(rn, "NUMBA_AVAILABLE", False)                # a machine without numba
+    assert MonteCarloRisk(n_rollouts=8).backend == "numpy"            # auto falls back
+    with pytest.raises(MonteCarloConfigError, match="numba"):
+        MonteCarloRisk(n_rollouts=8, backend="numba")

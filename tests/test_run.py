@@ -200,6 +200,41 @@ def test_cli_run_prints_summary(scenario_file, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "TABLE II" in text and "MOTA" in text and "20-40 m" in text
     assert sorted(p.name for p in out.iterdir()) == ["camera.json", "ground_truth.jsonl", "metrics.json",
-                                                     "per_object.csv"]
+                                                     "per_frame.csv", "per_object.csv"]
     assert json.loads((out / "metrics.json").read_text())["frames"] == 4
     assert not math.isnan(json.loads((out / "metrics.json").read_text())["tracking"]["mota"])
+
+
+# ------------------------------------------------------------------ lane speed and risk scoring
+def test_lane_speed_and_risk_scored_on_a_braking_lead(tmp_path):
+    """lead_braking with the brake at 1 s, 4 s at 320x180, non-US markings (3 m every 9 m)."""
+    from pathlib import Path
+
+    import yaml
+
+    d = yaml.safe_load((Path(__file__).resolve().parents[1] / "scenarios" / "lead_braking.yaml").read_text())
+    d.update(duration_s=4.0, camera={"width": 320, "height": 180})
+    d["road"]["markings"] = {"stripe_length_m": 3.0, "period_m": 9.0}
+    d["events"][0]["at_s"] = 1.0
+    sc = parse_scenario(d)
+    cfg = {**ORACLE, "risk": {"name": "monte_carlo", "kwargs": {"n_rollouts": 100}},
+           "ego_speed": {"name": "ground_track"}}
+    m = run_scenario(sc, cfg, out_dir=tmp_path / "o", annotate=False, write_frames=False, gps_speed=True)
+    for key in ["lane_speed.rel_err_median", "lane_speed.abs_err_median_mps", "lane_speed.valid_fraction",
+                "risk.auroc", "risk.brier", "risk.baseline_ttc.auroc", "risk.baseline_ttc.brier",
+                "runtime_ms.ego_speed"]:
+        _get(m, key)
+    ls, rk = m["lane_speed"], m["risk"]
+    # The estimator was told the scenario's markings; with the US period (12.19 m) it would read 35% fast.
+    assert m["config"]["component_kwargs"]["ego_speed"]["period_m"] == 9.0
+    assert ls["method"] == "ground_track" and ls["valid_fraction"] > 0.5
+    assert ls["rel_err_median"] < 0.05
+    assert rk["positives"] > 0 and rk["frames_scored"] + rk["excluded_past_end"] == m["frames"] == 60
+    assert 0.0 <= rk["brier"] <= 1.0 and 0.0 <= rk["baseline_ttc"]["brier"] <= 1.0
+    assert rk["kind"] == "probability" and rk["baseline_ttc"]["kind"] == "inverse_ttc"
+    assert sum(rk["ego_speed_sources"].values()) == 60 and rk["ego_speed_sources"]["risk_default"] == 0
+    rows = (tmp_path / "o" / "per_frame.csv").read_text().splitlines()
+    assert rows[0].split(",")[:4] == ["frame", "t", "ego_speed_est", "ego_speed_gt"] and len(rows) == 61
+    # The near miss is in the ground truth: the frames just before it are labelled positive.
+    labels = [r.split(",")[-1] for r in rows[1:]]
+    assert labels[-1] == "1"

@@ -241,3 +241,114 @@ def test_table_ii_lists_stage_times_and_fps():
     assert rows["Tracker"][0] == "0.250" and rows["Risk Estimator"][0] == "0.062"
     assert rows["Total (stages)"] == ["3.000"] and rows["Total (FPS)"] == ["250.00", "5.56"]
     assert "-" in table_ii({"runtime_ms": {}, "fps": float("nan")}, paper=False)
+
+
+# ------------------------------------------------------------------------------ risk scoring
+def _brute_auroc(scores, labels):
+    """P(score of a positive > score of a negative) + 0.5 P(tie), by counting every pair."""
+    pos = [s for s, y in zip(scores, labels) if y]
+    neg = [s for s, y in zip(scores, labels) if not y]
+    wins = sum(1.0 if p > n else 0.5 if p == n else 0.0 for p in pos for n in neg)
+    return wins / (len(pos) * len(neg))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_auroc_matches_pair_count_and_scipy_u(seed):
+    from scipy.stats import mannwhitneyu
+
+    rng = np.random.default_rng(seed)
+    n = 60
+    labels = rng.random(n) < 0.3
+    scores = np.round(rng.normal(labels * 0.8, 1.0), 1)      # rounded: many ties
+    scores[:10] = 0.0                                         # and a big block of them
+    a = algo.auroc(scores, labels)
+    assert a == pytest.approx(_brute_auroc(scores, labels), abs=1e-12)
+    u = mannwhitneyu(scores[labels], scores[~labels], alternative="two-sided").statistic
+    assert a * labels.sum() * (~labels).sum() == pytest.approx(u, abs=1e-9)
+
+
+def test_auroc_edge_cases():
+    assert algo.auroc([0.1, 0.9], [False, True]) == 1.0
+    assert algo.auroc([0.9, 0.1], [False, True]) == 0.0
+    assert algo.auroc([0.5, 0.5, 0.5], [False, True, True]) == 0.5
+    assert math.isnan(algo.auroc([0.1, 0.2], [True, True]))
+    assert math.isnan(algo.auroc([], []))
+
+
+def test_brier_by_hand_and_ttc_mapping():
+    # (0.9-1)^2 + (0.2-0)^2 + (0.5-1)^2 + 0 = 0.01 + 0.04 + 0.25 = 0.30 over 4
+    assert algo.brier([0.9, 0.2, 0.5, 0.0], [1, 0, 1, 0]) == pytest.approx(0.075)
+    assert math.isnan(algo.brier([], []))
+    with pytest.raises(ValueError):
+        algo.brier([1.5], [1])
+    # 1/TTC -> probability: TTC <= 1 s -> 1, 2 s -> 0.5, 4 s -> 0.25, no collision course -> 0
+    np.testing.assert_allclose(algo.inverse_ttc_probability([1 / 0.5, 1.0, 0.5, 0.25, 0.0]),
+                               [1.0, 1.0, 0.5, 0.25, 0.0])
+
+
+def _risk_truth(frame, fps=10.0, ego_crashed=False, objects=()):
+    return {"frame": frame, "t": frame / fps, "ego": {"speed": 20.0, "crashed": ego_crashed},
+            "objects": [dict(o) for o in objects]}
+
+
+def test_risk_labels_from_a_crash_and_a_near_miss_with_exclusion_at_the_end():
+    """10 fps, 0.3 s horizon (3 frames). Near miss (TTC 0.8 s) at frame 4; ego crash from frame 11 on."""
+    from harness.scoring.evaluate import risk_labels
+
+    far = {"id": 1, "ttc": 5.0, "crashed": False}
+    near = {"id": 1, "ttc": 0.8, "crashed": False}
+    truths = []
+    for k in range(14):
+        objs = [near] if k == 4 else [far] if k % 2 else []
+        truths.append(_risk_truth(k, ego_crashed=k >= 11, objects=objs))
+    cfg = EvalConfig(risk_horizon_s=0.3, near_miss_ttc_s=1.0)
+    events, labels = risk_labels(truths, cfg)
+    assert events.tolist() == [k == 4 or k >= 11 for k in range(14)]
+    # frames 1..4 see the near miss within 3 frames, 8..13 the crash; 0, 5, 6, 7 see nothing
+    expected = [0, 1, 1, 1, 1, 0, 0, 0, 1, 1, 1, 1, 1, 1]
+    assert labels.tolist() == expected
+    # Without the crash, the last 3 frames' windows run past the end: excluded, not negative.
+    truths2 = [dict(t, ego={"speed": 20.0, "crashed": False}) for t in truths]
+    _, labels2 = risk_labels(truths2, cfg)
+    assert labels2[:10].tolist() == [0, 1, 1, 1, 1, 0, 0, 0, 0, 0]
+    assert np.isnan(labels2[11:]).all() and labels2[10] == 0
+    # A vehicle's own crash flag counts too; a TTC at or above the threshold does not.
+    assert algo.horizon_labels([False, False, True], 0).tolist() == [0, 0, 1]
+    _, l3 = risk_labels([_risk_truth(0, objects=[{"id": 2, "ttc": None, "crashed": True}]),
+                         _risk_truth(1, objects=[{"id": 2, "ttc": 1.0, "crashed": False}])],
+                        EvalConfig(risk_horizon_s=0.0))
+    assert l3.tolist() == [1, 0]
+
+
+def test_risk_and_lane_speed_metrics_in_evaluate():
+    """Scores, baseline and lane speed from a hand-made 5-frame run."""
+    from harness.scoring.evaluate import frame_rows
+
+    truths = [_risk_truth(k, objects=[{"id": 1, "box": [0, 0, 1, 1], "visibility": 1.0, "d_long": 30.0,
+                                       "d_lat": 0.0, "v_long": -1.0, "v_lat": 0.0,
+                                       "ttc": 0.5 if k == 4 else None}]) for k in range(5)]
+    risks = [0.0, 0.1, 0.7, 0.2, 0.9]                     # probabilities
+    ego = [None, 19.0, 21.0, 20.5, None]
+    results = [FrameResult(index=k, t=k / 10.0, detections=[], tracks=[], states={},
+                           risk=RiskEstimate(risk=r, kind="probability"), ego_speed=e, timings_ms={"risk": 1.0})
+               for k, (r, e) in enumerate(zip(risks, ego))]
+    baseline = [RiskEstimate(risk=v) for v in (0.0, 0.0, 0.5, 2.0, 2.0)]    # 1/TTC, 1/s
+    cfg = EvalConfig(risk_horizon_s=0.2)                 # 2 frames: labels 0,0,1,1,1
+    m, _ = evaluate(truths, results, cfg, baseline_risk=baseline, ego_speed_method="fake")
+    r = m["risk"]
+    assert (r["positives"], r["negatives"], r["excluded_past_end"]) == (3, 2, 0)
+    assert r["auroc"] == pytest.approx(_brute_auroc(risks, [0, 0, 1, 1, 1]))
+    assert r["brier"] == pytest.approx(np.mean((np.array(risks) - [0, 0, 1, 1, 1]) ** 2))
+    assert r["baseline_ttc"]["auroc"] == pytest.approx(1.0)
+    assert r["baseline_ttc"]["brier"] == pytest.approx((0 + 0 + 0.25 + 0 + 0) / 5)   # p = min(1, 1/TTC x 1 s)
+    ls = m["lane_speed"]
+    assert ls["valid_fraction"] == pytest.approx(3 / 5) and ls["method"] == "fake"
+    assert ls["abs_err_median_mps"] == pytest.approx(1.0)          # |19-20|, |21-20|, |20.5-20|
+    assert ls["rel_err_median"] == pytest.approx(1.0 / 20.0)
+    rows = frame_rows(truths, results, cfg, baseline)
+    assert [row["risk_label"] for row in rows] == [0, 0, 1, 1, 1]
+    assert math.isnan(rows[0]["ego_speed_est"]) and rows[1]["ego_speed_gt"] == 20.0
+    # No ego-speed stage: the section is there, with nothing to score.
+    m2, _ = evaluate(truths, results, cfg)
+    assert m2["lane_speed"]["method"] is None and math.isnan(m2["lane_speed"]["valid_fraction"])
+    assert "baseline_ttc" not in m2["risk"]

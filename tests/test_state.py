@@ -10,7 +10,8 @@ import pytest
 
 from monorarp.camera import CameraModel
 from monorarp.registry import create
-from monorarp.state import StateEstimator, eq3_distance, eq4_lateral, measure_boxes
+from monorarp.state import (StateEstimator, eq3_distance, eq4_lateral, lateral_from_terms, lateral_terms,
+                            measure_boxes)
 from monorarp.types import Track
 
 FPS = 30.0
@@ -202,3 +203,138 @@ def test_registered_and_box_above_horizon_skipped(level_cam):
     assert est.update([Track(1, sky), Track(2, vehicle_box(level_cam, 0, 10))], 0.0).keys() == {2}
     with pytest.raises(ValueError):
         StateEstimator(level_cam, velocity="magic")
+
+
+# --------------------------------------------------------------------- boxes cut by the image border
+def visible_box(cam: CameraModel, d_x: float, d_y: float, W=1.8, L=4.5, H=1.5, overhang=0.95, clearance=0.17):
+    """Tight box of the part of a box-shaped vehicle inside the image (cv2 only).
+
+    The vehicle is the convex hull of its body corners (clearance..H) and tyre contact lines;
+    its projection (``cv2.projectPoints``) is clipped to the image rectangle
+    (-0.5..w-0.5, -0.5..h-0.5) with ``cv2.intersectConvexConvex``.
+    """
+    h = cam.height_m
+    pts = []
+    for x in (d_x - W / 2, d_x + W / 2):
+        for y in (d_y, d_y + L):
+            pts += [(x, y, -h + clearance), (x, y, -h + H)]
+        pts += [(x, d_y + overhang, -h), (x, d_y + L - overhang, -h)]
+    uv = project_cv2(cam, np.array(pts)).astype(np.float32)
+    hull = cv2.convexHull(uv)
+    w, hh = cam.width - 0.5, cam.height - 0.5
+    rect = np.array([[-0.5, -0.5], [w, -0.5], [w, hh], [-0.5, hh]], dtype=np.float32)
+    area, inter = cv2.intersectConvexConvex(hull, rect)
+    assert area > 0, "vehicle not in view"
+    p = inter.reshape(-1, 2).astype(float)
+    return (p[:, 0].min(), p[:, 1].min(), p[:, 0].max(), p[:, 1].max())
+
+
+@pytest.mark.parametrize("cam_name", ["level_cam", "pitched_cam"])
+@pytest.mark.parametrize("X", [3.7, -3.7, 5.0])
+@pytest.mark.parametrize("Y", [3.0, 4.5, 6.0])
+def test_far_edge_cut_by_border_uses_the_near_edge(request, cam_name, X, Y):
+    """A vehicle in an adjacent lane leaving the view: the near edge (inner front corner) gives d_x."""
+    cam = request.getfixturevalue(cam_name)
+    box = np.array([visible_box(cam, X, Y)])
+    x1, _, x2, _ = box[0]
+    assert (x2 >= cam.width - 0.5 - 1e-3) if X > 0 else (x1 <= -0.5 + 1e-3)   # the far edge is the border
+    # Equation 4 on the near edge is exact at the true distance.
+    assert lateral_from_terms(lateral_terms(cam, box), np.array([Y]))[0] == pytest.approx(X, abs=1e-4)
+    # On the far edge (the border) it pulls the vehicle towards the centre line.
+    d_x_border = measure_boxes(cam, box, border_tol_px=None)[0, 0]
+    assert abs(d_x_border) < abs(X) - 0.3
+    d_x, d_y = measure_boxes(cam, box)[0]
+    u_c = project_cv2(cam, np.array([[X - np.sign(X) * 0.9, Y + 0.95, -cam.height_m]]))[0, 0]
+    if -0.5 < u_c < cam.width - 0.5:
+        # The border also cuts the underside between the rear corner and the tyres, so the bottom
+        # edge is not exactly the contact line: a few % in d_y, which carries into d_x.
+        assert d_y == pytest.approx(Y, rel=0.03)
+        assert d_x == pytest.approx(X, abs=0.03 * abs(X))
+    else:   # no part of the contact line in view: the box gives no distance
+        assert np.isnan(d_y)
+
+
+def test_near_edge_error_from_a_wrong_assumed_length_is_small(level_cam):
+    """A 5 m x 2 m vehicle (highway-env's) measured with the defaults (4.5 m x 1.8 m assumed)."""
+    for Y in (4.5, 6.0, 8.0):
+        box = np.array([visible_box(level_cam, 4.0, Y, W=2.0, L=5.0)])
+        assert level_cam.width - 0.5 - box[0, 2] < 1e-3
+        d_x = measure_boxes(level_cam, box)[0, 0]
+        assert abs(d_x - 4.0) < 0.35
+
+
+def test_straddling_box_with_one_side_cut_uses_the_other_rear_corner():
+    """Camera laterally within the vehicle's width, very close: only the rear face; one side cut."""
+    cam = CameraModel.from_fov(640, 360, 90.0, 1.0)
+    X, Y = -0.8, 1.5
+    box = visible_box(cam, X, Y, clearance=0.3)
+    assert box[0] <= -0.5 + 1e-3 and box[2] < cam.width - 2 and box[0] < cam.cx < box[2]
+    assert box[3] < cam.height - 5
+    d_x, d_y = measure_boxes(cam, np.array([box]), ground_clearance_m=0.3)[0]
+    assert d_y == pytest.approx(Y, rel=1e-5)
+    assert d_x == pytest.approx(X, abs=1e-4)
+    assert abs(measure_boxes(cam, np.array([box]), ground_clearance_m=0.3, border_tol_px=None)[0, 0] - X) > 0.05
+
+
+def test_both_sides_cut_gives_no_lateral_and_bottom_cut_gives_no_distance(level_cam):
+    wide = np.array([[-0.5, 100.0, level_cam.width - 0.5, 300.0]])
+    d_x, d_y = measure_boxes(level_cam, wide)[0]
+    assert np.isnan(d_x) and np.isfinite(d_y)
+    # A lead vehicle 1.5 m ahead: the contact line is below the image, the box's bottom is the border.
+    box = np.array([visible_box(level_cam, 0.0, 1.5)])
+    assert box[0, 3] == pytest.approx(level_cam.height - 0.5)
+    d_x, d_y = measure_boxes(level_cam, box)[0]
+    assert np.isnan(d_y) and np.isnan(d_x)
+    d_y_border = measure_boxes(level_cam, box, border_tol_px=None)[0, 1]
+    assert d_y_border > 1.5 + 0.5                     # what equation 3 would have said: too far
+
+
+@pytest.mark.parametrize("velocity", ["kalman", "difference"])
+def test_bottom_cut_track_keeps_its_filtered_distance(level_cam, velocity):
+    """A known track whose box bottom reaches the border: distance predicted/held, never the border's."""
+    est = StateEstimator(level_cam, velocity=velocity)
+    v = -3.0
+    out = []
+    for k in range(40):
+        t = k / FPS
+        box = visible_box(level_cam, 0.0, 4.0 + v * t)
+        out.append((t, 4.0 + v * t, box[3] >= level_cam.height - 1.5, est.update([Track(1, box)], t).get(1)))
+    cut = [o for o in out if o[2]]
+    assert cut and not out[0][2]
+    last_whole = [o for o in out if not o[2]][-1][3].d_y
+    for t, d_true, _, s in cut:
+        assert s is not None
+        assert s.d_y <= last_whole + 1e-6                 # never the (farther) distance of the border row
+        if velocity == "kalman":
+            assert s.d_y == pytest.approx(d_true, abs=0.3)  # predicted on
+    # A new track whose first box is cut is not output.
+    est.reset()
+    assert est.update([Track(2, visible_box(level_cam, 0.0, 1.5))], 0.0) == {}
+
+
+def test_vehicle_leaving_the_view_gives_no_lateral_velocity_or_false_warning(pitched_cam):
+    """Adjacent-lane vehicle (5 m x 2 m) at a constant 4 m offset, the ego overtaking it at 3 m/s."""
+    from monorarp.risk import TTCRiskEstimator
+
+    def run(border_tol_px):
+        est = StateEstimator(pitched_cam, border_tol_px=border_tol_px)
+        risk = TTCRiskEstimator()
+        v_x, d_x, warn = [], [], []
+        for k in range(60):
+            t = k / FPS
+            Y = 9.0 - 3.0 * t
+            box = visible_box(pitched_cam, 4.0, Y, W=2.0, L=5.0)
+            if box[2] - box[0] < 3:
+                break
+            s = est.update([Track(1, box)], t).get(1)
+            if s is not None and k > 5:
+                v_x.append(s.v_x)
+                d_x.append(s.d_x)
+                ttc = risk.assess({1: s}, t).ttc.get(1)
+                warn.append(ttc is not None and ttc < 2.0)
+        return np.array(v_x), np.array(d_x), np.array(warn)
+
+    v_x, d_x, warn = run(1.0)
+    assert np.abs(v_x).max() < 0.6 and np.abs(d_x - 4.0).max() < 0.4 and not warn.any()
+    v_x_old, _, _ = run(None)                          # the far edge taken at the border
+    assert v_x_old.min() < -1.5

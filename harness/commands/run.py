@@ -1,6 +1,6 @@
 """``monorarp run SCENARIO.yaml``: simulate, render, run the pipeline, score, print a summary.
 
-Writes ``DIR/metrics.json``, ``DIR/per_object.csv``, ``DIR/annotated.mp4`` and the
+Writes ``DIR/metrics.json``, ``DIR/per_object.csv``, ``DIR/per_frame.csv``, ``DIR/annotated.mp4`` and the
 rendered ``frames.mp4``/``camera.json``/``ground_truth.jsonl`` (see
 :mod:`harness.run`); the directory appears complete or not at all.
 """
@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Simulate SCENARIO.yaml, render its dashcam frames, run the MonoRARP pipeline on them "
                     "and score every output against ground truth. Prints a summary (distance error by "
                     "range, tracking, detection, TTC warnings, the paper's Table II) and writes "
-                    "DIR/metrics.json, DIR/per_object.csv, DIR/annotated.mp4, DIR/frames.mp4, "
+                    "DIR/metrics.json, DIR/per_object.csv, DIR/per_frame.csv, DIR/annotated.mp4, DIR/frames.mp4, "
                     "DIR/camera.json and DIR/ground_truth.jsonl.")
     p.add_argument("scenario", type=Path, metavar="SCENARIO.yaml", help="scenario file")
     p.add_argument("--detector", default="centernet", metavar="NAME|PATH.onnx|oracle",
@@ -34,6 +34,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tracker", default="particle", metavar="NAME", help="registered tracker (default: particle)")
     p.add_argument("--velocity", choices=("kalman", "difference"), default="kalman",
                    help="relative velocity of the state estimator (default: kalman)")
+    p.add_argument("--ego-speed", choices=("ground_track", "lsd_period", "none"), default="ground_track",
+                   help="lane-marking ego-speed estimator, told the scenario's marking dimensions "
+                        "(road.markings); scored against the true ego speed (default: ground_track)")
+    p.add_argument("--risk", choices=("ttc", "monte_carlo"), default="ttc",
+                   help="risk estimator: the paper's 1/TTC or Monte Carlo IDM/MOBIL rollouts (which take the "
+                        "ego speed from the ego-speed estimator; default: ttc)")
+    p.add_argument("--gps-speed", action="store_true",
+                   help="monte_carlo: use the true ego speed (as a GPS would give) on frames where the "
+                        "ego-speed estimator has no estimate (otherwise the estimator's fallback)")
+    p.add_argument("--risk-horizon", type=float, default=10.0, metavar="S",
+                   help="risk scoring: a frame is positive when a collision or near miss follows within S s "
+                        "(default 10)")
     p.add_argument("--frames", type=int, default=None, metavar="N",
                    help="number of frames (default: the scenario's duration x fps)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
@@ -56,9 +68,12 @@ def pipeline_config(args: argparse.Namespace):
     detector = args.detector
     if detector.lower().endswith(".onnx"):
         detector = str(Path(detector).expanduser())
+    ego = getattr(args, "ego_speed", "none")
     return PipelineConfig(detector=ComponentConfig(name=detector, kwargs=oracle_kw),
                           tracker=ComponentConfig(name=args.tracker),
-                          state=ComponentConfig(name="geometric", kwargs={"velocity": args.velocity}))
+                          state=ComponentConfig(name="geometric", kwargs={"velocity": args.velocity}),
+                          risk=ComponentConfig(name=getattr(args, "risk", "ttc")),
+                          ego_speed=None if ego == "none" else ComponentConfig(name=ego))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -71,6 +86,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     if not args.warning_threshold > 0:
         raise UserError(f"--warning-threshold: must be positive (s), got {args.warning_threshold}")
+    if not args.risk_horizon > 0:
+        raise UserError(f"--risk-horizon: must be positive (s), got {args.risk_horizon}")
     cfg = pipeline_config(args)
     scenario = load_scenario(args.scenario)
     if (args.frames or scenario.n_frames) <= 0:
@@ -79,7 +96,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         metrics = run_scenario(scenario, cfg, n_frames=args.frames, out_dir=out, threaded=args.threaded,
                                annotate=not args.no_video, write_frames=not args.no_video,
-                               eval_config=EvalConfig(warning_threshold_s=args.warning_threshold))
+                               gps_speed=args.gps_speed,
+                               eval_config=EvalConfig(warning_threshold_s=args.warning_threshold,
+                                                      risk_horizon_s=args.risk_horizon))
     except ScenarioError as e:   # found by the simulation: make sure the message names the file
         msg = str(e)
         raise ScenarioError(msg if msg.startswith(str(args.scenario)) else f"{args.scenario}: {msg}") from None

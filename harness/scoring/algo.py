@@ -112,3 +112,68 @@ def warning_classification(ttc_est, ttc_gt, threshold_s: float = DEFAULT_WARNING
     out = precision_recall(int((w_est & w_gt).sum()), int(w_est.sum()), int(w_gt.sum()))
     out["threshold_s"] = float(threshold_s)
     return out
+
+
+# ----------------------------------------------------------------------------- risk scoring
+def average_ranks(x: Sequence[float] | np.ndarray) -> np.ndarray:
+    """1-based ranks of ``x`` with ties given the mean of the ranks they span."""
+    x = np.asarray(x, dtype=float)
+    _, inverse, counts = np.unique(x, return_inverse=True, return_counts=True)
+    upper = np.cumsum(counts)                  # last rank of each distinct value
+    return (upper - (counts - 1) / 2.0)[inverse]
+
+
+def auroc(scores: Sequence[float] | np.ndarray, labels: Sequence[bool] | np.ndarray) -> float:
+    """Area under the ROC curve of ``scores`` for binary ``labels`` (Mann-Whitney U / (n1 n0)).
+
+    Ties count one half (average ranks). ``nan`` when either class is empty.
+    """
+    s = np.asarray(scores, dtype=float)
+    y = np.asarray(labels, dtype=bool)
+    if s.shape != y.shape:
+        raise ValueError("scores and labels must have the same length")
+    n1, n0 = int(y.sum()), int((~y).sum())
+    if n1 == 0 or n0 == 0:
+        return float("nan")
+    u = average_ranks(s)[y].sum() - n1 * (n1 + 1) / 2.0
+    return float(u / (n1 * n0))
+
+
+def brier(prob: Sequence[float] | np.ndarray, labels: Sequence[bool] | np.ndarray) -> float:
+    """Mean squared difference between probabilities in [0, 1] and 0/1 outcomes (nan when empty)."""
+    p = np.asarray(prob, dtype=float)
+    y = np.asarray(labels, dtype=float)
+    if p.shape != y.shape:
+        raise ValueError("prob and labels must have the same length")
+    if p.size and not ((p >= 0) & (p <= 1)).all():
+        raise ValueError("probabilities must lie in [0, 1]")
+    return _nan_stat(np.mean, (p - y) ** 2)
+
+
+def inverse_ttc_probability(risk: Sequence[float] | np.ndarray, scale_s: float = 1.0) -> np.ndarray:
+    """Map the paper's risk 1/TTC (1/s) to a probability: ``min(1, risk * scale_s)``.
+
+    With ``scale_s`` = the near-miss threshold (1 s): a TTC at or under it gives 1, a TTC
+    of 2 s gives 0.5, no collision course (risk 0) gives 0.
+    """
+    return np.clip(np.asarray(risk, dtype=float) * scale_s, 0.0, 1.0)
+
+
+def horizon_labels(event: Sequence[bool] | np.ndarray, horizon_frames: int) -> np.ndarray:
+    """Label of frame k: does ``event`` occur in frames k .. k + horizon_frames? (float; nan = excluded).
+
+    A frame whose window runs past the last frame is labelled only when the event is
+    already seen within the frames that exist (1); otherwise it is excluded (nan),
+    since the run does not say what happened next.
+    """
+    e = np.asarray(event, dtype=bool)
+    n = e.size
+    if horizon_frames < 0:
+        raise ValueError("horizon_frames must be >= 0")
+    # next_event[k] = index of the first event at or after k (n when none).
+    idx = np.where(e, np.arange(n), n)
+    next_event = np.minimum.accumulate(idx[::-1])[::-1] if n else idx
+    k = np.arange(n)
+    positive = (next_event < n) & (next_event <= k + horizon_frames)
+    complete = k + horizon_frames <= n - 1
+    return np.where(positive, 1.0, np.where(complete, 0.0, np.nan))

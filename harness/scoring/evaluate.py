@@ -23,11 +23,28 @@ Rules (all configurable in :class:`EvalConfig`):
   a track with no TTC (none within the 10 s horizon, or no state) warns nothing.
   ``frame_warning``: per frame, the scene warns when any estimated TTC is below
   the threshold, truth when any counted object's is.
+* **Lane (ego) speed**: ``FrameResult.ego_speed`` (m/s, None = no estimate) against
+  the truth's ``ego.speed``: errors over the frames with an estimate,
+  ``valid_fraction`` = those frames / all frames (null when the run has no
+  ego-speed stage).
+* **Risk** against what the simulation really did next. Event of frame j: the
+  ego's or any visible vehicle's ``crashed`` flag (highway-env keeps it set after a
+  crash), or any visible vehicle with ground-truth TTC under ``near_miss_ttc_s``
+  (1 s). Label of frame k: an event in frames k .. k + ``risk_horizon_s`` x fps
+  (10 s). A frame whose window runs past the last frame counts only when it is
+  already positive; otherwise it is excluded (``risk.excluded_past_end``).
+  ``risk.auroc`` (Mann-Whitney, ties one half; null when a class is absent) and
+  ``risk.brier`` of the risk as a probability: the Monte Carlo estimator's
+  probability as is; the paper's 1/TTC mapped by ``p = min(1, risk x
+  near_miss_ttc_s)`` (TTC <= 1 s -> 1, TTC 2 s -> 0.5, no collision course -> 0).
+  ``risk.baseline_ttc``: the same for the 1/TTC estimator run on the same
+  states, when the run's risk estimator is another one.
 * Statistics over nothing (no pairs, no warnings) are ``null`` in JSON.
 """
 
 from __future__ import annotations
 
+import csv
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -39,12 +56,12 @@ from harness.output import to_jsonable, write_json_atomic
 from harness.scoring import algo
 from harness.scoring.match import MIN_IOU, as_boxes, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
-from harness.scoring.records import ObjectRecord
+from harness.scoring.records import ObjectRecord, _cell
 from monorarp.camera import CameraModel
-from monorarp.types import FrameResult
+from monorarp.types import FrameResult, RiskEstimate
 
 NAN = float("nan")
-STAGES = ("detector", "tracker", "state", "risk", "total")
+STAGES = ("detector", "ego_speed", "tracker", "state", "risk", "total")
 
 
 @dataclass(frozen=True)
@@ -54,6 +71,8 @@ class EvalConfig:
     min_visibility: float = 0.3
     max_range_m: float = 80.0
     ignore_cover: float | None = 0.5
+    risk_horizon_s: float = 10.0
+    near_miss_ttc_s: float = 1.0
 
 
 def _f(v) -> float:
@@ -206,10 +225,13 @@ def runtime_metrics(results: Sequence[FrameResult], wall_time_s: float | None) -
 
 def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig = EvalConfig(),
              wall_time_s: float | None = None, run_info: Mapping | None = None,
-             camera: CameraModel | None = None) -> tuple[dict, list[ObjectRecord]]:
+             camera: CameraModel | None = None, baseline_risk: Sequence[RiskEstimate] | None = None,
+             ego_speed_method: str | None = None) -> tuple[dict, list[ObjectRecord]]:
     """Score a run. ``truths[i]`` and ``results[i]`` must describe the same frame.
 
     ``camera`` (the one that rendered the frames) enables the range filter on predictions.
+    ``baseline_risk``: the 1/TTC estimator's output on the same frames (``risk.baseline_ttc``).
+    ``ego_speed_method``: name of the ego-speed stage (None: the run has none).
 
     Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`jsonable`.
     """
@@ -228,6 +250,8 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
         **{k: sm[k] for k in ("distance", "lateral", "rel_velocity", "ttc")},
         "tracking": tracking,
         "detection": detection,
+        "lane_speed": lane_speed_metrics(truths, results, ego_speed_method),
+        "risk": risk_metrics(truths, results, cfg, baseline_risk),
         "runtime_ms": runtime,
         "fps": fps,
         "wall_time_s": NAN if wall_time_s is None else float(wall_time_s),
@@ -239,6 +263,107 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
         "config": dict(run_info or {}),
     }
     return metrics, records
+
+
+# ------------------------------------------------------------------------ lane speed, risk
+def lane_speed_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], method: str | None) -> dict:
+    """Ego-speed estimate (m/s) against the truth's ``ego.speed`` (see the module docstring)."""
+    est = np.array([NAN if r.ego_speed is None else float(r.ego_speed) for r in results], dtype=float)
+    gt = np.array([float(t["ego"]["speed"]) for t in truths], dtype=float)
+    out: dict[str, Any] = {"method": method}
+    out.update(algo.error_stats(est, gt, relative=True, unit="_mps"))
+    n_valid = int(np.isfinite(est).sum())
+    out["valid_fraction"] = algo.ratio(n_valid, len(results)) if method is not None else NAN
+    out["frames_with_estimate"] = n_valid
+    return out
+
+
+def risk_event(truth: Mapping, near_miss_ttc_s: float) -> bool:
+    """Collision (ego's or a visible vehicle's ``crashed`` flag) or near miss (a visible vehicle's TTC < threshold)."""
+    if truth["ego"].get("crashed", False):
+        return True
+    return any(o.get("crashed", False) or (o.get("ttc") is not None and o["ttc"] < near_miss_ttc_s)
+               for o in truth["objects"])
+
+
+def horizon_frames(truths: Sequence[Mapping], horizon_s: float) -> int:
+    """The label window in frames: ``round(horizon_s / dt)`` with dt the median frame interval."""
+    t = np.array([float(tr["t"]) for tr in truths], dtype=float)
+    if t.size < 2:
+        return 1 << 30                        # one frame: no window fits, only positives are labelled
+    dt = float(np.median(np.diff(t)))
+    return int(round(horizon_s / dt)) if dt > 0 else 1 << 30
+
+
+def risk_labels(truths: Sequence[Mapping], cfg: EvalConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(events, labels) per frame: bool events and float labels (nan = excluded; see the module docstring)."""
+    events = np.array([risk_event(t, cfg.near_miss_ttc_s) for t in truths], dtype=bool)
+    return events, algo.horizon_labels(events, horizon_frames(truths, cfg.risk_horizon_s))
+
+
+def risk_probability(estimates: Sequence[RiskEstimate], near_miss_ttc_s: float) -> np.ndarray:
+    """Each risk as a probability: as is for ``kind == "probability"``, else 1/TTC mapped (module docstring)."""
+    return np.array([min(max(e.risk, 0.0), 1.0) if e.kind == "probability"
+                     else float(algo.inverse_ttc_probability(e.risk, near_miss_ttc_s)) for e in estimates],
+                    dtype=float)
+
+
+def _risk_scores(estimates: Sequence[RiskEstimate], labels: np.ndarray, near_miss_ttc_s: float) -> dict:
+    ok = np.isfinite(labels)
+    y = labels[ok].astype(bool)
+    score = np.array([e.risk for e in estimates], dtype=float)[ok]
+    prob = risk_probability(estimates, near_miss_ttc_s)[ok]
+    kinds = sorted({e.kind for e in estimates})
+    return {"kind": kinds[0] if len(kinds) == 1 else kinds, "auroc": algo.auroc(score, y),
+            "brier": algo.brier(prob, y)}
+
+
+def risk_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig,
+                 baseline: Sequence[RiskEstimate] | None = None) -> dict:
+    """``risk.*`` of ``metrics.json``: AUROC and Brier score against the horizon labels."""
+    events, labels = risk_labels(truths, cfg)
+    ok = np.isfinite(labels)
+    out: dict[str, Any] = _risk_scores([r.risk for r in results], labels, cfg.near_miss_ttc_s)
+    out.update({"horizon_s": cfg.risk_horizon_s, "near_miss_ttc_s": cfg.near_miss_ttc_s,
+                "inverse_ttc_probability": f"min(1, risk * {cfg.near_miss_ttc_s:g} s)",
+                "frames_scored": int(ok.sum()), "positives": int((labels[ok] == 1).sum()),
+                "negatives": int((labels[ok] == 0).sum()), "excluded_past_end": int((~ok).sum()),
+                "event_frames": int(events.sum())})
+    if baseline is not None:
+        if len(baseline) != len(results):
+            raise ValueError(f"{len(baseline)} baseline risks for {len(results)} frames")
+        out["baseline_ttc"] = _risk_scores(list(baseline), labels, cfg.near_miss_ttc_s)
+    return out
+
+
+FRAME_COLUMNS = ("frame", "t", "ego_speed_est", "ego_speed_gt", "risk", "risk_kind", "risk_probability",
+                 "baseline_ttc_risk", "risk_event", "risk_label")
+
+
+def frame_rows(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig,
+               baseline: Sequence[RiskEstimate] | None = None) -> list[dict]:
+    """One row per frame (``per_frame.csv``): ego speed estimate/truth (m/s), risk, its label (nan = excluded)."""
+    events, labels = risk_labels(truths, cfg)
+    prob = risk_probability([r.risk for r in results], cfg.near_miss_ttc_s)
+    rows = []
+    for k, (tr, res) in enumerate(zip(truths, results)):
+        rows.append({"frame": res.index, "t": res.t,
+                     "ego_speed_est": NAN if res.ego_speed is None else float(res.ego_speed),
+                     "ego_speed_gt": float(tr["ego"]["speed"]), "risk": float(res.risk.risk),
+                     "risk_kind": res.risk.kind, "risk_probability": float(prob[k]),
+                     "baseline_ttc_risk": NAN if baseline is None else float(baseline[k].risk),
+                     "risk_event": bool(events[k]), "risk_label": labels[k]})
+    return rows
+
+
+def write_frame_csv(rows: Sequence[Mapping], path: str | Path) -> None:
+    """Write :func:`frame_rows` as CSV (empty cell = missing / NaN / excluded)."""
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(FRAME_COLUMNS)
+        for r in rows:
+            w.writerow([_cell(int(r[c]) if c == "risk_label" and np.isfinite(r[c]) else r[c])
+                        for c in FRAME_COLUMNS])
 
 
 def jsonable(obj: Any) -> Any:

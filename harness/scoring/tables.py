@@ -10,6 +10,7 @@ from harness.scoring.algo import RANGE_BINS
 PAPER_TABLE_II = {"detector": 120.7, "tracker": 3.2, "state": 0.3, "risk": 0.4, "fps": 5.5629}
 _ROWS = (("Object Detector", "detector"), ("Tracker", "tracker"), ("State Estimator", "state"),
          ("Risk Estimator", "risk"))
+_EXTRA_ROWS = (("Ego Speed", "ego_speed"),)   # not in the paper's table
 
 
 def _num(v, fmt: str = "{:.2f}") -> str:
@@ -27,6 +28,9 @@ def table_ii(metrics: Mapping, paper: bool = True) -> str:
     lines = ["TABLE II: Overall Runtime of Risk Prediction System", head, "-" * len(head)]
     for label, key in _ROWS:
         lines.append(f"{label:<18}{_num(rt.get(key), '{:.3f}'):>21}" + (f"{PAPER_TABLE_II[key]:>12.1f}" if paper else ""))
+    for label, key in _EXTRA_ROWS:
+        if rt.get(key):
+            lines.append(f"{label:<18}{_num(rt.get(key), '{:.3f}'):>21}" + (f"{'-':>12}" if paper else ""))
     lines.append(f"{'Total (stages)':<18}{_num(rt.get('total'), '{:.3f}'):>21}" + (f"{'':>12}" if paper else ""))
     lines.append(f"{'Total (FPS)':<18}{_num(metrics.get('fps'), '{:.2f}'):>21}"
                  + (f"{PAPER_TABLE_II['fps']:>12.2f}" if paper else ""))
@@ -52,6 +56,19 @@ def summary_table(metrics: Mapping) -> str:
     w = metrics["ttc"]["warning"]
     out.append(f"TTC warnings (< {w['threshold_s']:g} s): precision {_num(w['precision'], '{:.3f}')}, recall "
                f"{_num(w['recall'], '{:.3f}')} (tp {w['tp']}, fp {w['fp']}, fn {w['fn']})")
+    ls = metrics.get("lane_speed")
+    if ls and ls.get("method"):
+        out.append(f"lane speed ({ls['method']}): rel. error median {_pct(ls['rel_err_median'])}, abs. median "
+                   f"{_num(ls['abs_err_median_mps'], '{:.3f}')} m/s, valid {_pct(ls['valid_fraction'])} of frames")
+    rk = metrics.get("risk")
+    if rk:
+        line = (f"risk ({rk['kind']}, {rk['horizon_s']:g} s horizon): AUROC {_num(rk['auroc'], '{:.3f}')}, Brier "
+                f"{_num(rk['brier'], '{:.3f}')} over {rk['frames_scored']} frames ({rk['positives']} positive, "
+                f"{rk['excluded_past_end']} excluded past the end)")
+        if rk.get("baseline_ttc"):
+            b = rk["baseline_ttc"]
+            line += f"; 1/TTC baseline AUROC {_num(b['auroc'], '{:.3f}')}, Brier {_num(b['brier'], '{:.3f}')}"
+        out.append(line)
     t, det = metrics["tracking"], metrics["detection"]
     out.append(f"tracking: MOTA {_num(t['mota'], '{:.3f}')}, IDF1 {_num(t['idf1'], '{:.3f}')}, id switches "
                f"{t['id_switches']}, FP {t['false_positives']}, misses {t['misses']} of {t['objects']}")

@@ -1,8 +1,9 @@
 """Monte Carlo collision risk from IDM/MOBIL rollouts (paper section VI-B).
 
 ``idm`` (driver-model maths), ``drivers`` (sampled parameters), ``scene``
-(estimated states -> road scene), ``rollout`` (batched simulation),
-``estimator`` (the registered ``("risk", "monte_carlo")`` component).
+(estimated states -> road scene), ``rollout`` (batched simulation, numpy),
+``rollout_numba`` (the same simulation compiled with numba), ``estimator``
+(the registered ``("risk", "monte_carlo")`` component).
 """
 
 from monorarp.risk_mc.estimator import MonteCarloRisk

@@ -1,0 +1,54 @@
+"""``monorarp sweep SPEC.yaml --out DIR``: run every scenario x seed x grid x variant of a sweep spec.
+
+Exit status: 0 all runs finished, 1 some run failed (the others still ran and
+are summarised), 2 bad input (spec, output directory, executor) — then no run
+started.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from monorarp.errors import UserError
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "sweep", help="run a sweep spec (scenarios x seeds x grid x variants), summarise and report",
+        description="Expand SPEC.yaml into runs with stable ids, run each (simulate, render, pipeline, score) "
+                    "isolated and atomically into DIR/runs/<id>/, then write DIR/summary.json, DIR/summary.csv "
+                    "and a self-contained DIR/report.html. Exits 1 if any run failed, 2 on bad input.")
+    p.add_argument("spec", type=Path, metavar="SPEC.yaml", help="sweep spec file")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (new or empty, or "
+                   "a previous sweep's with --resume)")
+    p.add_argument("--executor", choices=("local", "ray"), default="local",
+                   help="local: this machine (process pool when --workers > 1); ray: Ray tasks (default: local)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="parallel runs: processes (local) or CPUs of the local Ray instance (default 1)")
+    p.add_argument("--address", default=None, metavar="auto|HOST:PORT",
+                   help="Ray cluster to connect to (with --executor ray); default: start a local Ray instance")
+    p.add_argument("--resume", action="store_true",
+                   help="skip runs already finished in DIR with the same parameters")
+    p.add_argument("--videos", action="store_true", help="also write annotated.mp4 for every run (slower)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from harness.sweep.orchestrate import REPORT_HTML, run_sweep
+
+    if args.workers < 1:
+        raise UserError(f"--workers: must be a positive integer, got {args.workers}")
+    if args.address is not None and args.executor != "ray":
+        raise UserError("--address is only for --executor ray")
+    res = run_sweep(args.spec, args.out, executor=args.executor, workers=args.workers, resume=args.resume,
+                    address=args.address, videos=args.videos, progress=not args.no_progress)
+    n = len(res.rows)
+    ok = n - len(res.failed)
+    skipped = f", {len(res.skipped)} skipped (already finished)" if res.skipped else ""
+    print(f"sweep {res.expansion.spec.name}: {ok}/{n} runs ok{skipped} in {res.wall_time_s:.1f} s")
+    for r in res.failed:
+        print(f"  FAILED {r['id']}: {r['error']}")
+    print(f"wrote {args.out}/summary.json, summary.csv, {REPORT_HTML}")
+    return 1 if res.failed else 0

@@ -1,0 +1,10 @@
+"""Scenario sweeps: a validated spec expands to runs with stable ids, run by a local or Ray executor.
+
+* :mod:`.spec`      — the sweep-spec YAML schema (:class:`SweepSpec`), override paths checked against the scenario schema;
+* :mod:`.expand`    — scenarios x seeds x grid x variants -> :class:`RunTask` list with readable ids;
+* :mod:`.worker`    — one run, isolated: metrics + ``run.json`` or ``error.json``;
+* :mod:`.executors` — local process pool / Ray;
+* :mod:`.summary`   — ``summary.json`` / ``summary.csv``;
+* :mod:`.report`    — the self-contained ``report.html``;
+* :mod:`.sweep`     — orchestration used by ``monorarp sweep``.
+"""

@@ -1,0 +1,292 @@
+"""``report.html``: one self-contained page (inline CSS, plots as base64 PNG from matplotlib's Agg
+backend, no scripts, no external resources) that opens in a browser with no network.
+
+Sections: overview and failed runs; every run with its headline metrics;
+distance error against range per variant (pooled over runs from each run's
+``per_object.csv``: counted, matched object-frames with a state, 0-80 m);
+TTC over time against truth for the risky cases (scenario/seed/grid whose
+ground truth has a TTC below the warning threshold; the object with the lowest
+true TTC, every variant's estimate for it); tracker comparison; runtime breakdown.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+DEFAULT_HEADLINE = ("distance.rel_err_median", "distance.abs_err_median_m", "rel_velocity.abs_err_median_mps",
+                    "tracking.mota", "tracking.idf1", "tracking.id_switches", "ttc.warning.precision",
+                    "ttc.warning.recall", "runtime_ms.total", "fps")
+RANGE_EDGES = np.arange(0.0, 80.0 + 1e-9, 5.0)
+REPORT_BINS = {"0-10": (0, 10), "10-20": (10, 20), "20-40": (20, 40), "40-80": (40, 80)}
+STAGES = ("detector", "ego_speed", "tracker", "state", "risk")
+MAX_TTC_PLOTS = 8
+CSV_COLUMNS = ["t", "gt_id", "track_id", "counted", "matched", "d_long_gt", "d_y_est", "ttc_gt", "ttc_est"]
+
+CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#1d1d1f;max-width:1400px}
+h1{font-size:22px}h2{font-size:18px;margin-top:32px;border-bottom:1px solid #ddd;padding-bottom:4px}
+table{border-collapse:collapse;font-size:12px;margin:8px 0}
+th,td{border:1px solid #d0d0d0;padding:3px 6px;text-align:right;white-space:nowrap}
+th{background:#f3f3f3}td.l,th.l{text-align:left}
+tr.failed td{background:#fde8e8}.ok{color:#137333}.bad{color:#b3261e;font-weight:600}
+.note{color:#555;font-size:13px}img{max-width:100%;height:auto}
+.scroll{overflow-x:auto}
+"""
+
+
+# ------------------------------------------------------------------ helpers
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            return "–"
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[Any]], left: int = 1,
+           row_classes: Sequence[str] | None = None) -> str:
+    e = html.escape
+    th = "".join(f'<th class="l">{e(h)}</th>' if i < left else f"<th>{e(h)}</th>" for i, h in enumerate(header))
+    body = []
+    for j, r in enumerate(rows):
+        cls = f' class="{row_classes[j]}"' if row_classes and row_classes[j] else ""
+        tds = "".join(f'<td class="l">{e(_fmt(v))}</td>' if i < left else f"<td>{e(_fmt(v))}</td>"
+                      for i, v in enumerate(r))
+        body.append(f"<tr{cls}>{tds}</tr>")
+    return f'<div class="scroll"><table><thead><tr>{th}</tr></thead><tbody>{"".join(body)}</tbody></table></div>'
+
+
+def _png(fig) -> str:
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight", metadata={"Software": None})
+    plt.close(fig)
+    return f'<img alt="plot" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode("ascii")}">'
+
+
+def _mean(values: Sequence[Any]) -> float | None:
+    x = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)]
+    return float(np.mean(x)) if x else None
+
+
+def _sum(values: Sequence[Any]) -> int | None:
+    x = [int(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    return int(sum(x)) if x else None
+
+
+def _variants(rows: Sequence[Mapping]) -> list[str]:
+    return list(dict.fromkeys(r["variant"] for r in rows))
+
+
+def load_per_object(run_dir: Path):
+    """The columns of ``per_object.csv`` the report uses (a pandas DataFrame), or None."""
+    import pandas as pd
+
+    path = run_dir / "per_object.csv"
+    if not path.is_file():
+        return None
+    try:
+        df = pd.read_csv(path, usecols=lambda c: c in CSV_COLUMNS)
+    except (OSError, ValueError):
+        return None
+    for c in ("counted", "matched"):
+        if c in df:
+            df[c] = df[c].fillna(0).astype(bool)
+    return df
+
+
+def _range_pairs(df) -> tuple[np.ndarray, np.ndarray]:
+    """(true distance, estimated distance) of counted matched object-frames with a state, 0 <= d < 80 m."""
+    if df is None or not {"counted", "matched", "d_long_gt", "d_y_est"} <= set(df.columns):
+        return np.empty(0), np.empty(0)
+    sel = df["counted"] & df["matched"] & np.isfinite(df["d_y_est"]) & (df["d_long_gt"] >= 0) & (df["d_long_gt"] < 80)
+    return df.loc[sel, "d_long_gt"].to_numpy(float), df.loc[sel, "d_y_est"].to_numpy(float)
+
+
+# ----------------------------------------------------------------- sections
+def distance_section(rows: Sequence[Mapping], frames: Mapping[str, Any]) -> str:
+    import matplotlib.pyplot as plt
+
+    pooled: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for v in _variants(rows):
+        parts = [_range_pairs(frames.get(r["id"])) for r in rows if r["variant"] == v and r["status"] == "ok"]
+        gt = np.concatenate([p[0] for p in parts]) if parts else np.empty(0)
+        est = np.concatenate([p[1] for p in parts]) if parts else np.empty(0)
+        pooled[v] = (gt, est)
+    if not any(g.size for g, _ in pooled.values()):
+        return "<h2>Distance error against range</h2><p class='note'>No scored object-frames.</p>"
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    centres = (RANGE_EDGES[:-1] + RANGE_EDGES[1:]) / 2
+    table_rows = []
+    for v, (gt, est) in pooled.items():
+        rel = np.abs(est - gt) / np.maximum(gt, 1e-9) * 100
+        ab = np.abs(est - gt)
+        idx = np.digitize(gt, RANGE_EDGES) - 1
+        med_rel = [np.median(rel[idx == i]) if np.any(idx == i) else np.nan for i in range(len(centres))]
+        med_abs = [np.median(ab[idx == i]) if np.any(idx == i) else np.nan for i in range(len(centres))]
+        ax1.plot(centres, med_rel, marker="o", ms=3, label=v)
+        ax2.plot(centres, med_abs, marker="o", ms=3, label=v)
+        row: list[Any] = [v]
+        for lo, hi in REPORT_BINS.values():
+            m = (gt >= lo) & (gt < hi)
+            row += [float(np.median(rel[m])) if m.any() else None, int(m.sum())]
+        row.append(float(np.median(rel)) if rel.size else None)
+        table_rows.append(row)
+    ax1.set(xlabel="true longitudinal distance d_long (m)", ylabel="median |d_y - d_long| / d_long (%)",
+            title="relative distance error (5 m bins)")
+    ax2.set(xlabel="true longitudinal distance d_long (m)", ylabel="median |d_y - d_long| (m)",
+            title="absolute distance error (5 m bins)")
+    for ax in (ax1, ax2):
+        ax.grid(alpha=0.3)
+        ax.set_xlim(0, 80)
+        ax.set_ylim(bottom=0)
+    ax1.legend(fontsize=8)
+    header = ["variant"] + [h for b in REPORT_BINS for h in (f"{b} m rel. median %", "n")] + ["all rel. median %"]
+    return ("<h2>Distance error against range</h2><p class='note'>Pooled over every finished run of each variant: "
+            "counted, matched object-frames with a state estimate, 0 ≤ d_long &lt; 80 m.</p>"
+            + _png(fig) + _table(header, table_rows))
+
+
+def _cases(rows: Sequence[Mapping]) -> dict[tuple, list[Mapping]]:
+    out: dict[tuple, list[Mapping]] = {}
+    for r in rows:
+        key = (r["scenario"], r["seed"], tuple(r["grid"].items()))
+        out.setdefault(key, []).append(r)
+    return out
+
+
+def ttc_section(rows: Sequence[Mapping], frames: Mapping[str, Any], threshold_s: float) -> str:
+    import matplotlib.pyplot as plt
+
+    plots, n_risky = [], 0
+    for (scenario, seed, grid), runs in _cases(rows).items():
+        truth_df = next((frames[r["id"]] for r in runs if frames.get(r["id"]) is not None), None)
+        if truth_df is None or "ttc_gt" not in truth_df:
+            continue
+        gt_rows = truth_df[truth_df["counted"] & truth_df["gt_id"].notna() & np.isfinite(truth_df["ttc_gt"])]
+        if gt_rows.empty or not (gt_rows["ttc_gt"] < threshold_s).any():
+            continue
+        n_risky += 1
+        if len(plots) >= MAX_TTC_PLOTS:
+            continue
+        obj = gt_rows.loc[gt_rows["ttc_gt"].idxmin(), "gt_id"]
+        fig, ax = plt.subplots(figsize=(6.2, 3.3))
+        truth = truth_df[truth_df["gt_id"] == obj].sort_values("t")
+        ax.plot(truth["t"], truth["ttc_gt"], color="black", lw=2, label="truth")
+        for r in runs:
+            df = frames.get(r["id"])
+            if df is None:
+                continue
+            est = df[(df["gt_id"] == obj) & df["matched"]].sort_values("t")
+            ax.plot(est["t"], est["ttc_est"], marker=".", ms=3, lw=1, label=r["variant"])
+        ax.axhline(threshold_s, color="red", ls="--", lw=1, label=f"warning {threshold_s:g} s")
+        ax.set(xlabel="t (s)", ylabel="TTC (s)", ylim=(0, 10),
+               title=f"{scenario} seed {seed} {' '.join(f'{k}={v}' for k, v in grid)} (object {int(obj)})")
+        ax.title.set_fontsize(9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+        plots.append(_png(fig))
+    head = "<h2>TTC over time against truth (risky cases)</h2>"
+    if not n_risky:
+        return head + f"<p class='note'>No case has a true TTC below {threshold_s:g} s.</p>"
+    more = f" Showing the first {MAX_TTC_PLOTS} of {n_risky}." if n_risky > MAX_TTC_PLOTS else ""
+    return (head + f"<p class='note'>Cases whose ground truth has a TTC below {threshold_s:g} s; the object with the "
+            f"lowest true TTC; estimates while a track is matched to it (gaps: no TTC or no match).{more}</p>"
+            + "".join(plots))
+
+
+def tracker_section(rows: Sequence[Mapping]) -> str:
+    header = ["variant", "tracker", "detector", "runs ok", "MOTA", "IDF1", "ID switches", "false pos.", "misses",
+              "dist. rel. median", "TTC warn. precision", "TTC warn. recall", "tracker ms", "total ms", "fps"]
+    out = []
+    for v in _variants(rows):
+        rs = [r for r in rows if r["variant"] == v]
+        ok = [r["metrics"] for r in rs if r["status"] == "ok"]
+        out.append([v, rs[0]["tracker"], rs[0]["detector"], f"{len(ok)}/{len(rs)}",
+                    _mean([m.get("tracking.mota") for m in ok]), _mean([m.get("tracking.idf1") for m in ok]),
+                    _sum([m.get("tracking.id_switches") for m in ok]),
+                    _sum([m.get("tracking.false_positives") for m in ok]), _sum([m.get("tracking.misses") for m in ok]),
+                    _mean([m.get("distance.rel_err_median") for m in ok]),
+                    _mean([m.get("ttc.warning.precision") for m in ok]), _mean([m.get("ttc.warning.recall") for m in ok]),
+                    _mean([m.get("runtime_ms.tracker") for m in ok]), _mean([m.get("runtime_ms.total") for m in ok]),
+                    _mean([m.get("fps") for m in ok])])
+    return ("<h2>Tracker comparison</h2><p class='note'>Per variant: means over finished runs (ID switches, false "
+            "positives and misses summed); identical frames and detections for every variant of a case.</p>"
+            + _table(header, out, left=3))
+
+
+def runtime_section(rows: Sequence[Mapping]) -> str:
+    import matplotlib.pyplot as plt
+
+    variants = _variants(rows)
+    means = {v: {s: _mean([r["metrics"].get(f"runtime_ms.{s}") for r in rows
+                           if r["variant"] == v and r["status"] == "ok"]) or 0.0 for s in STAGES}
+             for v in variants}
+    totals = {v: _mean([r["metrics"].get("runtime_ms.total") for r in rows if r["variant"] == v and r["status"] == "ok"])
+              for v in variants}
+    if not any(totals.values()):
+        return "<h2>Runtime breakdown</h2><p class='note'>No timings.</p>"
+    fig, ax = plt.subplots(figsize=(8, 0.6 + 0.45 * len(variants)))
+    left = np.zeros(len(variants))
+    for s in STAGES:
+        vals = np.array([means[v][s] for v in variants])
+        ax.barh(variants, vals, left=left, label=s)
+        left += vals
+    ax.set(xlabel="mean time per frame (ms)", title="pipeline runtime per stage")
+    ax.invert_yaxis()
+    ax.legend(fontsize=7, ncol=len(STAGES), loc="lower right")
+    ax.grid(alpha=0.3, axis="x")
+    table = _table(["variant", *(f"{s} ms" for s in STAGES), "total ms", "fps"],
+                   [[v, *(means[v][s] for s in STAGES), totals[v],
+                     _mean([r["metrics"].get("fps") for r in rows if r["variant"] == v and r["status"] == "ok"])]
+                    for v in variants])
+    return ("<h2>Runtime breakdown</h2><p class='note'>Mean per-frame time of each stage (wall clock on the machine "
+            "that ran it; not part of any determinism or regression check).</p>" + _png(fig) + table)
+
+
+def runs_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Sequence[str]) -> str:
+    header = ["id", "scenario", "seed", *grid_keys, "variant", "status", *headline]
+    body = [[r["id"], r["scenario"], r["seed"], *(r["grid"].get(k) for k in grid_keys), r["variant"], r["status"],
+             *(r["metrics"].get(m) for m in headline)] for r in rows]
+    classes = ["failed" if r["status"] != "ok" else "" for r in rows]
+    return "<h2>Runs</h2>" + _table(header, body, left=2, row_classes=classes)
+
+
+def render_report(rows: Sequence[Mapping], runs_dir: Path, *, name: str, spec_path: str, grid_keys: Sequence[str],
+                  headline: Sequence[str] = (), threshold_s: float = 2.0) -> str:
+    """The whole HTML page as a string."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    headline = list(headline) or list(DEFAULT_HEADLINE)
+    frames = {r["id"]: load_per_object(runs_dir / r["id"]) for r in rows if r["status"] == "ok"}
+    n_ok = sum(r["status"] == "ok" for r in rows)
+    failed = [r for r in rows if r["status"] != "ok"]
+    e = html.escape
+    status = (f"<span class='ok'>all {n_ok} runs finished</span>" if not failed else
+              f"<span class='bad'>{len(failed)} of {len(rows)} runs failed</span>")
+    parts = [f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>{e(name)} — monorarp sweep</title>"
+             f"<style>{CSS}</style></head><body>",
+             f"<h1>Sweep {e(name)}</h1><p>spec <code>{e(spec_path)}</code> — {len(rows)} runs — {status}.</p>"]
+    if failed:
+        parts.append("<h2>Failed runs</h2>" + _table(["id", "status", "error"],
+                                                      [[r["id"], r["status"], r["error"]] for r in failed], left=3))
+    parts += [runs_section(rows, grid_keys, headline), distance_section(rows, frames),
+              ttc_section(rows, frames, threshold_s), tracker_section(rows), runtime_section(rows),
+              "</body></html>\n"]
+    return "\n".join(parts)
