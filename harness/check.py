@@ -79,8 +79,8 @@ class Rule:
 #: Metrics a new baseline tracks and their default tolerances (absolute; fractions for rates).
 DEFAULT_RULES: tuple[Rule, ...] = (
     Rule("frames", 0, TWO),
-    Rule("counts.gt_object_frames", 0, TWO),          # the simulated world itself changed
-    Rule("counts.counted_object_frames", 0, TWO),
+    Rule("counts.gt_object_frames", 0, TWO, 0.01),    # the simulated world itself changed
+    Rule("counts.counted_object_frames", 0, TWO, 0.01),
     Rule("distance.rel_err_median", 0.003, LOWER, 0.1),
     Rule("distance.rel_err_p90", 0.01, LOWER, 0.1),
     Rule("distance.abs_err_median_m", 0.05, LOWER, 0.1),

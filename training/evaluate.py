@@ -38,6 +38,17 @@ def figures(boxes, scores, ds: Dataset) -> dict:
     out: dict = {"images": len(ds.images), "vehicles": int(sum(len(g) for g in gts))}
     for thr in (0.5, 0.7):
         out[f"ap50" if thr == 0.5 else "ap70"] = round(average_precision(match(boxes, scores, list(gts), thr, list(igns))), 4)
+    ap_by_h = {}
+    for lo, hi in ((0, 16), (16, 40), (40, 1e9)):   # required boxes of one height band, the rest ignored
+        hs = [g[:, 3] - g[:, 1] for g in gts]
+        sel = [(x >= lo) & (x < hi) for x in hs]
+        g_in = [g[k] for g, k in zip(gts, sel)]
+        i_out = [np.concatenate([ig, g[~k]]) for ig, g, k in zip(igns, gts, sel)]
+        key = f"{lo}-{int(hi) if hi < 1e9 else 'inf'}"
+        ap_by_h[key] = {"count": int(sum(len(x) for x in g_in)),
+                        "ap50": round(average_precision(match(boxes, scores, g_in, 0.5, i_out)), 4),
+                        "ap70": round(average_precision(match(boxes, scores, g_in, 0.7, i_out)), 4)}
+    out["ap_by_box_height_px"] = ap_by_h
     m = match(boxes, scores, list(gts), 0.5, list(igns))
     err = np.array([boxes[i][d, 3] - gts[i][j, 3] for i, d, j in m.pairs])
     h = np.array([gts[i][j, 3] - gts[i][j, 1] for i, d, j in m.pairs])

@@ -23,7 +23,7 @@ from training.data import Dataset
 
 TRAIN_SHARDS = ((0, 150), (1, 150))       # (seed, scenarios); 10 frames each
 VAL = (100000, 40, 8)                      # seed, scenarios, frames; 640x360 only
-EPOCHS, BATCH, LR, SEED = 8, 16, 3e-3, 0
+EPOCHS, BATCH, LR, SEED = 28, 16, 3e-3, 0
 
 
 def metadata(figs: dict, score_threshold: float, data_dir: Path) -> dict:

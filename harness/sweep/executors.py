@@ -130,15 +130,40 @@ def resolve_auto_address() -> str:
 
 
 def probe(address: str, timeout_s: float = 3.0) -> None:
-    """Fail fast (one line) when nothing listens at ``address`` — ``ray.init`` would retry for minutes."""
+    """Fail fast (one line) when no Ray GCS answers at ``address`` — ``ray.init`` would retry for minutes.
+
+    First a TCP connection; then (GCS addresses, not ``ray://``) one gRPC call to the
+    GCS with a deadline: a server that is not gRPC at all (e.g. an HTTP proxy) or
+    does not answer is refused. Any gRPC answer, even "unauthenticated" or
+    "unknown method", counts as reachable and is left to ``ray.init``.
+    """
     host, port = _split_address(address)
+    hint = "is `ray start --head` running there and the port open?"
     try:
         with socket.create_connection((host, port), timeout=timeout_s):
             pass
     except OSError as e:
         reason = "timed out" if isinstance(e, TimeoutError) else (e.strerror or str(e))
         raise ExecutorError(f"cannot reach the Ray cluster at {host}:{port} ({reason} after at most {timeout_s:g} s); "
-                            f"is `ray start --head` running there and the port open?") from None
+                            f"{hint}") from None
+    if address.startswith("ray://"):
+        return
+    try:
+        import grpc
+    except ImportError:
+        return
+    channel = grpc.insecure_channel(f"{host}:{port}")
+    try:
+        call = channel.unary_unary("/ray.rpc.NodeInfoGcsService/GetClusterId")
+        call(b"", timeout=timeout_s)
+    except grpc.RpcError as e:
+        code, details = e.code(), (e.details() or "")
+        not_grpc = code == grpc.StatusCode.UNIMPLEMENTED and "http2 header" in details.lower()
+        if not_grpc or code in (grpc.StatusCode.UNAVAILABLE, grpc.StatusCode.DEADLINE_EXCEEDED):
+            raise ExecutorError(f"no Ray cluster answers at {host}:{port} ({code.name.lower()}: "
+                                f"{' '.join(details.split())[:120]}); {hint}") from None
+    finally:
+        channel.close()
 
 
 class RayExecutor:
@@ -156,6 +181,17 @@ class RayExecutor:
         if address is not None:   # checked now, before any run starts
             self.address = resolve_auto_address() if address == "auto" else address
             probe(self.address, probe_timeout_s)
+
+    def start(self) -> None:
+        """Initialise Ray (before the output directory is touched)."""
+        self._started = self._connect()
+
+    def close(self) -> None:
+        import ray
+
+        if getattr(self, "_started", False):
+            ray.shutdown()
+            self._started = False
 
     def _connect(self) -> bool:
         """Initialise Ray; returns whether this call started it (and must shut it down)."""
@@ -178,7 +214,8 @@ class RayExecutor:
     def run(self, tasks: Sequence[RunTask], runs_dir: Path) -> Iterator[RunOutcome]:
         import ray
 
-        started = self._connect()
+        if not hasattr(self, "_started"):
+            self.start()
         try:
             remote = ray.remote(num_cpus=1, max_retries=0)(worker.execute_detached)
             pending = {remote.remote(t): t for t in tasks}
@@ -196,8 +233,6 @@ class RayExecutor:
         finally:
             for ref in list(locals().get("pending", {})):
                 ray.cancel(ref, force=True)
-            if started:
-                ray.shutdown()
 
 
 def make_executor(kind: str, workers: int, address: str | None = None) -> Executor:

@@ -89,6 +89,15 @@ def run_sweep(spec_path: str | Path, out: str | Path, *, executor: str = "local"
     out = Path(out)
     ex = make(executor, workers, address)          # unreachable Ray address etc. fails here, in seconds
     expansion = load_and_expand(spec_path, annotate=videos)
+    getattr(ex, "start", lambda: None)()         # e.g. connect to Ray, before DIR is touched
+    try:
+        return _run(ex, expansion, spec_path, out, resume, progress, t0)
+    finally:
+        getattr(ex, "close", lambda: None)()
+
+
+def _run(ex: Executor, expansion: Expansion, spec_path: str | Path, out: Path, resume: bool, progress: bool,
+         t0: float) -> SweepResult:
     runs_dir = prepare_out_dir(out, resume)
     tasks = expansion.tasks
     skipped = [t.id for t in tasks if resume and finished(t, runs_dir)]

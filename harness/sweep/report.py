@@ -249,7 +249,7 @@ def runtime_section(rows: Sequence[Mapping]) -> str:
         left += vals
     ax.set(xlabel="mean time per frame (ms)", title="pipeline runtime per stage")
     ax.invert_yaxis()
-    ax.legend(fontsize=7, ncol=len(STAGES), loc="lower right")
+    ax.legend(fontsize=7, ncol=len(STAGES), loc="upper center", bbox_to_anchor=(0.5, -0.25 - 0.6 / len(variants)))
     ax.grid(alpha=0.3, axis="x")
     table = _table(["variant", *(f"{s} ms" for s in STAGES), "total ms", "fps"],
                    [[v, *(means[v][s] for s in STAGES), totals[v],

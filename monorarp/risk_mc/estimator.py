@@ -37,10 +37,11 @@ loop (:mod:`monorarp.risk_mc.rollout_numba`, always float64, ~2-3x faster than
 numpy at 500 rollouts); ``"numpy"`` is the vectorised pure-numpy path
 (:mod:`monorarp.risk_mc.rollout`, in ``dtype``); ``"auto"`` (default) takes numba
 when it can be imported, else numpy. Both simulate the same sampled futures and
-agree up to floating-point rounding. With numba, the constructor warms the kernel
-up (``warm_up=True``): a few seconds the first time ever (compilation, then cached in
-``__pycache__``), ~0.2 s per process afterwards (cache load), so the first frame is
-not slow.
+agree up to floating-point rounding. With numba, the first estimator of a process
+imports numba and warms the kernel up in its constructor (``warm_up=True``), so the
+first frame is not slow: measured ~3-5 s the first time ever (compilation, then
+cached in ``__pycache__``), ~0.5 s per process afterwards (numba import + cache
+load), ~0.3 ms for later estimators.
 
 Determinism and common random numbers: each driver's parameters and noise are
 drawn from a stream seeded by ``(seed, track id)``, so a vehicle keeps its sampled
@@ -58,7 +59,6 @@ import numpy as np
 
 from monorarp.errors import UserError
 from monorarp.registry import register
-from monorarp.risk_mc import rollout_numba
 from monorarp.risk_mc.drivers import ROW_NV, ROW_NX, ROW_NY, DriverDistribution, DriverParams
 from monorarp.risk_mc.rollout import MAX_VEHICLES, RolloutConfig, RolloutResult, Scene, simulate
 from monorarp.risk_mc.scene import Geometry, Noise, lane_of, lane_range, road_positions
@@ -74,9 +74,15 @@ class MonteCarloConfigError(UserError, ValueError):
 
 
 def resolve_backend(backend: str) -> str:
-    """``"numba"`` or ``"numpy"`` for a requested backend (``"auto"``: numba when importable)."""
+    """``"numba"`` or ``"numpy"`` for a requested backend (``"auto"``: numba when importable).
+
+    numba is imported here, not with the package (~0.3-0.5 s), so only an estimator pays for it.
+    """
     if backend not in BACKENDS:
         raise MonteCarloConfigError(f"risk backend must be one of {BACKENDS}, got {backend!r}")
+    if backend == "numpy":
+        return backend
+    from monorarp.risk_mc import rollout_numba
     if backend == "auto":
         return "numba" if rollout_numba.NUMBA_AVAILABLE else "numpy"
     if backend == "numba" and not rollout_numba.NUMBA_AVAILABLE:
@@ -133,9 +139,12 @@ class MonteCarloRisk:
         if score not in ("probability", "inverse_ttc"):
             raise MonteCarloConfigError(f"score must be 'probability' or 'inverse_ttc', got {score!r}")
         self.backend = resolve_backend(backend)   # the one in use: "numba" or "numpy"
-        self._simulate = rollout_numba.simulate_numba if self.backend == "numba" else simulate
-        if self.backend == "numba" and warm_up:
-            rollout_numba.warm_up()
+        self._simulate = simulate
+        if self.backend == "numba":
+            from monorarp.risk_mc import rollout_numba
+            self._simulate = rollout_numba.simulate_numba
+            if warm_up:
+                rollout_numba.warm_up()
         if camera is not None:  # a CameraModel: take its mounting offsets
             camera_forward_offset_m = camera.forward_offset_m
             camera_lateral_offset_m = camera.lateral_offset_m

@@ -13,10 +13,15 @@ Per sample and relink step the vehicles are insertion-sorted along the road by
 the starting point, so this is ~O(N)), and leaders / followers in every lane come
 from one walk down / up that order, remembering the last occupant seen in each lane
 (a vehicle occupies its current lane and, while changing, its target lane).
+Two shortcuts skip work without changing any result: the second IDM evaluation
+only when the target lane's leader differs from the current one, and the
+rectangle contact test only for vehicles that could touch the ego within the
+near-miss window along both axes (``|gap| > |relative speed| * window``, with a
+relative margin of 1e-9 far above rounding, so no contact is skipped).
 
 Compilation: ``@njit(cache=True)`` caches the machine code in ``__pycache__`` next to
 this file (or numba's user cache dir when that is read-only). The first call in a
-process compiles it (a few seconds) or loads the cache (much faster); :func:`warm_up`
+process compiles it (measured ~3 s) or loads the cache (~0.2 s); :func:`warm_up`
 does that on purpose so the first frame is not slow. Importing this module does not
 need numba: :data:`NUMBA_AVAILABLE` says whether the backend can run.
 """
@@ -85,7 +90,7 @@ def _sort_order(order, x, n):
 
 @njit(**_JIT)
 def _leaders(order, cur, tgt, n, lane_min, seen, lead_cur, lead_tgt, lead_l, lead_r, sides):
-    """Leader (vehicle index, n = nobody) of every vehicle in its current / target lane and, if ``sides``, both side lanes."""
+    """Leader (index, n = nobody) of each vehicle in its current and target lanes, and side lanes if ``sides``."""
     seen[:] = n
     for r in range(n - 1, -1, -1):
         i = order[r]
@@ -272,7 +277,7 @@ def _kernel(x0, y0, v0s, cur0, tgt0, hl_in, hx, hy, can_mobil,
 @njit(**_JIT)
 def _mobil_side(i, n, s, nl, f, v, front, rear, free, afree, acc_raw, old_term, a, T, c, s0,
                 p_in, th_in, bsafe_in, floor_s_star):
-    """MOBIL (gain, safe and gain >= threshold) of vehicle ``i`` moving behind leader ``nl`` and ahead of follower ``f``.
+    """MOBIL (gain, safe and gain >= threshold) of ``i`` moving between leader ``nl`` and follower ``f`` (n = nobody).
 
     Branch-free on purpose: returning early for unsafe changes measured ~35 % slower overall.
     """
@@ -334,7 +339,7 @@ def _mobil(s, n, t, x, v, front, rear, free, afree, acc_raw, cur, tgt, last, ord
         if cur[i] < lane_max:
             g1, ok1 = _mobil_side(i, n, s, lead_r[i], foll_r[i], v, front, rear, free, afree, acc_raw, old_term,
                                   a, T, c, s0, p_in, th_in, bsafe_in, floor_s_star)
-        right = (g1 < g0 or not ok0) and ok1
+        right = (g1 > g0 or not ok0) and ok1
         left = ok0 and not right
         if right:
             decision[i] = 1
