@@ -18,7 +18,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="monorarp", description="Monocular collision-risk pipeline and its simulation harness.")
     parser.add_argument("--version", action="version", version=f"monorarp {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    seen: set[str] = set()
     for ep in sorted(entry_points(group="monorarp.commands"), key=lambda e: e.name):
+        if ep.name in seen:  # the same distribution seen twice (e.g. a stray egg-info on sys.path)
+            continue
+        seen.add(ep.name)
         ep.load()(sub)
     return parser
 

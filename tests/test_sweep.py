@@ -19,7 +19,7 @@ import yaml
 import harness.run
 from harness.scenario import parse_scenario
 from harness.sweep.expand import format_value, load_and_expand, run_id
-from harness.sweep.spec import SweepSpecError, check_override_path, load_sweep_spec
+from harness.sweep.spec import check_override_path
 from harness.sweep.summary import deterministic_metrics
 from monorarp.cli import main
 
@@ -241,3 +241,16 @@ def test_one_and_two_workers_give_identical_metrics(real_sweeps):
     full = json.loads((real_sweeps / "w1" / "summary.json").read_text())["runs"][0]["metrics"]
     assert sorted(set(full) - set(deterministic_metrics(full))) == sorted(
         k for k in full if k.startswith("runtime_ms.") or k in ("fps", "wall_time_s"))
+
+
+def test_report_copes_with_runs_without_objects(tmp_path):
+    """A scenario with no vehicles gives a header-only per_object.csv; the report still renders."""
+    from harness.scoring.records import COLUMNS
+    from harness.sweep.report import render_report
+
+    (tmp_path / "r1").mkdir()
+    (tmp_path / "r1" / "per_object.csv").write_text(",".join(COLUMNS) + "\n")
+    rows = [{"id": "r1", "scenario": "s", "seed": 0, "grid": {}, "variant": "v", "tracker": "particle",
+             "detector": "oracle", "status": "ok", "error": None, "metrics": {"frames": 3, "runtime_ms.total": 1.0}}]
+    html = render_report(rows, tmp_path, name="n", spec_path="spec.yaml", grid_keys=[])
+    assert "No scored object-frames" in html and "No case has a true TTC" in html

@@ -6,5 +6,5 @@
 * :mod:`.executors` — local process pool / Ray;
 * :mod:`.summary`   — ``summary.json`` / ``summary.csv``;
 * :mod:`.report`    — the self-contained ``report.html``;
-* :mod:`.sweep`     — orchestration used by ``monorarp sweep``.
+* :mod:`.orchestrate` — orchestration used by ``monorarp sweep``.
 """

@@ -29,7 +29,8 @@ from harness.sweep.expand import RunTask
 from harness.sweep.worker import RunOutcome
 from monorarp.errors import UserError
 
-THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
+#: Thread-count variables set in each worker: BLAS/OpenMP, and Mesa llvmpipe's rasteriser threads.
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS", "LP_NUM_THREADS")
 
 
 class ExecutorError(UserError, RuntimeError):
@@ -199,7 +200,8 @@ class RayExecutor:
 
         if ray.is_initialized():
             return False
-        env = {"env_vars": {"PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl")}}
+        # one CPU per task: one rasteriser thread (Ray itself sets OMP_NUM_THREADS=1 for such tasks)
+        env = {"env_vars": {"PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"), "LP_NUM_THREADS": "1"}}
         if self.address is None:
             ray.init(num_cpus=self.workers, include_dashboard=False, log_to_driver=False, runtime_env=env,
                      configure_logging=False)

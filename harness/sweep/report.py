@@ -104,9 +104,11 @@ def load_per_object(run_dir: Path):
         df = pd.read_csv(path, usecols=lambda c: c in CSV_COLUMNS)
     except (OSError, ValueError):
         return None
-    for c in ("counted", "matched"):
-        if c in df:
-            df[c] = df[c].fillna(0).astype(bool)
+    for c in df.columns:          # an empty or partly empty file gives object columns
+        if c in ("counted", "matched"):
+            df[c] = pd.to_numeric(df[c], errors="coerce").fillna(0).astype(bool)
+        else:
+            df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
     return df
 
 
