@@ -66,7 +66,8 @@ def gaussian_targets(boxes: np.ndarray, out_h: int, out_w: int, stride: int, alp
     Returns heatmap (out_h, out_w) in [0, 1] (1 at each box's centre cell, elliptic
     Gaussian with sigma = alpha * size / 6 in cells), ltrb (4, out_h, out_w): distances
     from each cell centre ``stride * j + (stride - 1) / 2`` to the edges of the box it
-    regresses, and regression weights (out_h, out_w) (the Gaussian value where >= reg_min;
+    regresses, and regression weights (out_h, out_w) (the Gaussian value where >= reg_min,
+    normalised to sum 1 per vehicle so that small, far vehicles weigh as much as near ones;
     smaller boxes take precedence where boxes overlap).
     """
     hm = np.zeros((out_h, out_w), np.float32)
@@ -95,5 +96,5 @@ def gaussian_targets(boxes: np.ndarray, out_h: int, out_w: int, stride: int, alp
         ltrb[1][reg] = (cys - y1).repeat(out_w, 1)[reg]
         ltrb[2][reg] = (x2 - cxs).repeat(out_h, 0)[reg]
         ltrb[3][reg] = (y2 - cys).repeat(out_w, 1)[reg]
-        wt[reg] = g[reg]
+        wt[reg] = g[reg] / g[reg].sum()     # every vehicle weighs the same, whatever its size
     return hm, ltrb, wt

@@ -37,7 +37,7 @@ def figures(boxes, scores, ds: Dataset) -> dict:
     gts, igns = zip(*(ds.boxes_of(i) for i in range(len(ds.images))))
     out: dict = {"images": len(ds.images), "vehicles": int(sum(len(g) for g in gts))}
     for thr in (0.5, 0.7):
-        out[f"ap50" if thr == 0.5 else "ap70"] = round(average_precision(match(boxes, scores, list(gts), thr, list(igns))), 4)
+        out["ap50" if thr == 0.5 else "ap70"] = round(average_precision(match(boxes, scores, list(gts), thr, list(igns))), 4)
     ap_by_h = {}
     for lo, hi in ((0, 16), (16, 40), (40, 1e9)):   # required boxes of one height band, the rest ignored
         hs = [g[:, 3] - g[:, 1] for g in gts]

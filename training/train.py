@@ -2,7 +2,8 @@
 
 Loss: penalty-reduced focal loss on the heatmap (CenterNet, alpha=2, beta=4,
 normalised by the number of vehicles) + L1 on the four edge distances (px / stride,
-Gaussian-weighted, bottom edge weighted x2 since the distance estimator reads it).
+Gaussian-weighted with each vehicle's weights summing to 1, so small far vehicles
+count as much as near ones; bottom edge weighted x2 since the distance estimator reads it).
 Augmentation: horizontal flip, brightness/contrast/colour jitter, sensor noise.
 
     python -m training.train --data data/train0 data/train1 --out data/ckpt.pt --epochs 30
@@ -36,7 +37,7 @@ def focal_loss(logits: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -
 
 def box_loss(pred: torch.Tensor, target: torch.Tensor, weight: torch.Tensor, stride: int) -> torch.Tensor:
     w = weight.unsqueeze(1) * torch.tensor(EDGE_WEIGHTS).view(1, 4, 1, 1)
-    return (w * (pred - target).abs()).sum() / (stride * weight.sum().clamp(min=1.0))
+    return (w * (pred - target).abs()).sum() / (stride * weight.sum().clamp(min=1.0))  # weight sums to #vehicles
 
 
 def make_batch(ds: Dataset, idx: np.ndarray, rng: np.random.Generator, stride: int, augment: bool):
