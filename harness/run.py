@@ -27,7 +27,6 @@ includes simulation and rendering (``metrics["config"]["fps_includes_render"]``)
 
 from __future__ import annotations
 
-import inspect
 import time
 from collections.abc import Iterator, Mapping
 from contextlib import ExitStack
@@ -40,7 +39,7 @@ from harness.scoring.records import write_csv
 from harness.scoring.tables import summary_table  # noqa: F401  (re-exported for callers)
 from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
-from monorarp.registry import get_factory
+from monorarp.registry import build, get_factory, instantiate
 from monorarp.types import Frame, FrameResult, ObjectState, RiskEstimate
 
 METRICS_NAME = "metrics.json"
@@ -55,17 +54,6 @@ PRELOAD_BYTES = 1 << 30
 
 
 # ---------------------------------------------------------------------------- pipeline
-def _instantiate(factory: Any, kwargs: Mapping, camera: CameraModel) -> Any:
-    kwargs = dict(kwargs)
-    try:
-        takes_camera = "camera" in inspect.signature(factory).parameters
-    except (TypeError, ValueError):
-        takes_camera = False
-    if takes_camera and "camera" not in kwargs:
-        kwargs["camera"] = camera
-    return factory(**kwargs)
-
-
 def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pipeline:
     """A :class:`Pipeline` from ``config``; the detector may also be an ``.onnx`` path or ``"oracle"``.
 
@@ -82,7 +70,7 @@ def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pip
     stages = {"detector": None if onnx else cfg.detector, "tracker": cfg.tracker, "state": cfg.state,
               "risk": cfg.risk, "ego_speed": cfg.ego_speed}
     factories = {k: get_factory(k, c.name) for k, c in stages.items() if c is not None}
-    built = {k: _instantiate(f, stages[k].kwargs, camera) for k, f in factories.items()}
+    built = {k: instantiate(f, stages[k].kwargs, camera) for k, f in factories.items()}
     if onnx:
         built["detector"] = load_detector(cfg.detector.name, **cfg.detector.kwargs)
     return Pipeline(detector=built["detector"], tracker=built["tracker"], state=built["state"],
@@ -130,7 +118,7 @@ def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[R
     """The paper's 1/TTC risk on the same states, when the run's risk estimator is another one (else None)."""
     if all(r.risk.kind == "inverse_ttc" for r in results):
         return None
-    ttc = _instantiate(get_factory("risk", "ttc"), {}, camera)
+    ttc = build("risk", "ttc", camera=camera)
     return [ttc.assess(r.states, r.t) for r in results]
 
 

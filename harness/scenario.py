@@ -11,8 +11,9 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from harness.config_io import format_validation_error, read_yaml
 
 from monorarp.camera import CameraError, CameraModel
 from monorarp.errors import UserError
@@ -228,18 +229,6 @@ class Scenario(_Model):
         return self
 
 
-def _format_validation_error(path: Path, err: ValidationError) -> str:
-    first = err.errors()[0]
-    loc = ".".join(str(p) for p in first["loc"] if not str(p).startswith("function-after"))
-    msg = first["msg"].removeprefix("Value error, ")
-    if first["type"] not in ("value_error", "missing", "extra_forbidden") and "input" in first:
-        given = first["input"]
-        if isinstance(given, (int, float, str, bool)) or given is None:
-            msg += f" (got {given!r})"
-    more = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
-    return f"{path}: {loc + ': ' if loc else ''}{msg}{more}"
-
-
 def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:
     """Validate an already-loaded mapping (e.g. after a sweep applied overrides)."""
     if not isinstance(data, dict):
@@ -247,23 +236,12 @@ def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:
     try:
         return Scenario.model_validate(data)
     except ValidationError as e:
-        raise ScenarioError(_format_validation_error(Path(str(source)), e)) from None
+        raise ScenarioError(format_validation_error(source, e)) from None
 
 
 def load_scenario_dict(path: str | Path) -> dict:
     """Read a scenario YAML into a plain dict (no validation)."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise ScenarioError(f"{path}: cannot read scenario ({e.strerror or e})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark else ""
-        raise ScenarioError(f"{path}: invalid YAML{where}: {getattr(e, 'problem', e)}") from None
-    return data
+    return read_yaml(path, ScenarioError, "scenario")
 
 
 def load_scenario(path: str | Path) -> Scenario:

@@ -158,8 +158,35 @@ class CameraModel:
         """Build from ``camera.json``-style dict (``K`` or fx/fy/cx/cy) or a YAML camera file.
 
         Accepted keys: width, height; either K (3x3) or fx, fy, cx, cy, or hfov_deg;
-        height_m; pitch_rad or pitch_deg; lateral_offset_m; forward_offset_m.
+        height_m; pitch_rad or pitch_deg, or horizon_row (px; pitch = atan((cy - horizon_row) / fy));
+        lateral_offset_m; forward_offset_m. When both a pitch and ``horizon_row`` are given
+        (as in ``camera.json``) they must agree within 1 px.
         """
+        try:
+            cam = cls._from_dict_intrinsics(d, source)
+            if "horizon_row" in d:
+                row = float(d["horizon_row"])
+                if not math.isfinite(row):
+                    raise CameraError(f"horizon_row must be finite, got {d['horizon_row']!r}")
+                if "pitch_rad" not in d and "pitch_deg" not in d:
+                    if not 0 <= row <= cam.height - 1:
+                        raise CameraError(f"horizon_row {row:.1f} px lies outside the image (0..{cam.height - 1})")
+                    return replace(cam, pitch_rad=math.atan((cam.cy - row) / cam.fy))
+                if abs(row - cam.horizon_row) > 1.0:
+                    raise CameraError(f"horizon_row {row:.1f} px disagrees with the pitch, which puts the horizon "
+                                      f"at {cam.horizon_row:.1f} px; give one of them")
+            return cam
+        except KeyError as e:
+            raise CameraError(f"{source}: missing field {e.args[0]!r}") from None
+        except CameraError as e:
+            msg = str(e)
+            raise CameraError(msg if msg.startswith(source) else f"{source}: {msg}") from None
+        except (TypeError, ValueError) as e:
+            raise CameraError(f"{source}: {e}") from None
+
+    @classmethod
+    def _from_dict_intrinsics(cls, d: dict, source: str) -> "CameraModel":
+        """:meth:`from_dict` without ``horizon_row`` (pitch 0 when no pitch field is given)."""
         try:
             width, height = int(d["width"]), int(d["height"])
             if "pitch_rad" in d:

@@ -22,7 +22,6 @@ the sum of the stages in the threaded one).
 
 from __future__ import annotations
 
-import inspect
 import queue
 import threading
 import time
@@ -33,7 +32,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from monorarp.camera import CameraModel
-from monorarp.registry import get_factory
+from monorarp import registry
 from monorarp.types import Frame, FrameResult
 
 
@@ -64,7 +63,7 @@ class Pipeline:
 
     @classmethod
     def from_config(cls, config: PipelineConfig | dict, camera: CameraModel | None = None) -> "Pipeline":
-        """Build every stage through the registry (:func:`monorarp.registry.get_factory`).
+        """Build every stage through the registry (:func:`monorarp.registry.build`).
 
         ``camera`` is passed to every component whose factory takes a ``camera``
         parameter (the state estimator; the risk estimator, for its mounting
@@ -73,13 +72,7 @@ class Pipeline:
         cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
 
         def build(kind: str, comp: ComponentConfig | None) -> Any:
-            if comp is None:
-                return None
-            factory = get_factory(kind, comp.name)
-            kwargs = dict(comp.kwargs)
-            if camera is not None and "camera" not in kwargs and _takes(factory, "camera"):
-                kwargs["camera"] = camera
-            return factory(**kwargs)
+            return None if comp is None else registry.build(kind, comp.name, comp.kwargs, camera)
 
         return cls(detector=build("detector", cfg.detector), tracker=build("tracker", cfg.tracker),
                    state=build("state", cfg.state), risk=build("risk", cfg.risk),
@@ -135,13 +128,6 @@ class Pipeline:
         return _result(rec)
 
 
-def _takes(factory: Callable, name: str) -> bool:
-    try:
-        return name in inspect.signature(factory).parameters
-    except (TypeError, ValueError):
-        return False
-
-
 _TAKES_EGO_SPEED: dict[type, bool] = {}
 
 
@@ -149,7 +135,7 @@ def _takes_ego_speed(risk: Any) -> bool:
     """Does ``risk.assess`` accept an ``ego_speed`` keyword? (cached per class)"""
     cls = type(risk)
     if cls not in _TAKES_EGO_SPEED:
-        _TAKES_EGO_SPEED[cls] = _takes(risk.assess, "ego_speed")
+        _TAKES_EGO_SPEED[cls] = registry.takes(risk.assess, "ego_speed")
     return _TAKES_EGO_SPEED[cls]
 
 

@@ -9,7 +9,8 @@ package exposes a factory under the entry-point group ``monorarp.<kind>``::
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import inspect
+from collections.abc import Callable, Mapping
 from importlib.metadata import entry_points
 from typing import Any
 
@@ -59,3 +60,24 @@ def get_factory(kind: str, name: str) -> Callable[..., Any]:
 def create(kind: str, name: str, **kwargs: Any) -> Any:
     """Instantiate the component registered as ``kind``/``name`` with ``kwargs``."""
     return get_factory(kind, name)(**kwargs)
+
+
+def takes(factory: Callable[..., Any], parameter: str) -> bool:
+    """Whether ``factory`` accepts a keyword ``parameter`` (False when it has no inspectable signature)."""
+    try:
+        return parameter in inspect.signature(factory).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def instantiate(factory: Callable[..., Any], kwargs: Mapping[str, Any], camera: Any = None) -> Any:
+    """Call ``factory(**kwargs)``, adding ``camera`` when the factory takes one and kwargs don't set it."""
+    kwargs = dict(kwargs)
+    if camera is not None and "camera" not in kwargs and takes(factory, "camera"):
+        kwargs["camera"] = camera
+    return factory(**kwargs)
+
+
+def build(kind: str, name: str, kwargs: Mapping[str, Any] | None = None, camera: Any = None) -> Any:
+    """The component ``kind``/``name`` built with ``kwargs`` and, where it takes one, the camera model."""
+    return instantiate(get_factory(kind, name), kwargs or {}, camera)

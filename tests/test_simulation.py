@@ -272,11 +272,11 @@ def test_unsimulatable_scenarios_raise_one_clear_error(kw, needle):
 
 # ----------------------------------------------------------------- shipped scenarios
 def _scenario_files():
-    """``scenarios/*.yaml`` that are scenarios (sweep specs have ``base``/``grid`` keys)."""
+    """``scenarios/*.yaml`` that are scenarios (sweep specs have a ``variants`` or ``scenarios`` list)."""
     out = []
     for p in sorted(SCENARIOS.glob("*.yaml")):
         data = yaml.safe_load(p.read_text())
-        if isinstance(data, dict) and not {"base", "grid"} & data.keys():
+        if isinstance(data, dict) and not {"variants", "scenarios"} & data.keys():
             out.append(p)
     return out
 

@@ -17,7 +17,6 @@ d_long of counted matched object-frames within 0-80 m, pooled the same way).
 
 from __future__ import annotations
 
-import inspect
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -33,7 +32,7 @@ from harness.scoring.records import ObjectRecord
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
 from monorarp.pipeline import ComponentConfig, PipelineConfig
-from monorarp.registry import get_factory
+from monorarp.registry import build, get_factory
 from monorarp.types import Detection, Frame, FrameResult
 
 DEFAULT_TRACKERS = ("particle", "kcf", "csrt", "mosse", "medianflow", "sort", "bytetrack")
@@ -74,19 +73,6 @@ def check_trackers(names: Sequence[str]) -> list[str]:
     for n in names:
         get_factory("tracker", n)
     return names
-
-
-def build_component(kind: str, comp: ComponentConfig, camera: CameraModel) -> Any:
-    """Instantiate a registered component, passing ``camera`` to factories that take one."""
-    factory = get_factory(kind, comp.name)
-    kwargs = dict(comp.kwargs)
-    try:
-        takes_camera = "camera" in inspect.signature(factory).parameters
-    except (TypeError, ValueError):
-        takes_camera = False
-    if takes_camera and "camera" not in kwargs:
-        kwargs["camera"] = camera
-    return factory(**kwargs)
 
 
 def build_detector(detector: ComponentConfig, camera: CameraModel) -> Any:
@@ -134,9 +120,9 @@ class TrackerRun:
 def run_tracker(seq: CachedSequence, tracker: ComponentConfig, state: ComponentConfig, risk: ComponentConfig,
                 eval_config: EvalConfig = EvalConfig()) -> TrackerRun:
     """Run ``tracker`` + ``state`` + ``risk`` (fresh instances) over the cached frames and detections; score."""
-    trk = build_component("tracker", tracker, seq.camera)
-    est = build_component("state", state, seq.camera)
-    rsk = build_component("risk", risk, seq.camera)
+    trk = build("tracker", tracker.name, tracker.kwargs, seq.camera)
+    est = build("state", state.name, state.kwargs, seq.camera)
+    rsk = build("risk", risk.name, risk.kwargs, seq.camera)
     results: list[FrameResult] = []
     tracker_ms = np.empty(len(seq.frames))
     for k, (frame, dets, det_ms) in enumerate(zip(seq.frames, seq.detections, seq.detector_ms)):

@@ -28,9 +28,9 @@ import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from harness.config_io import format_validation_error, read_yaml
 from harness.scenario import Scenario
 from monorarp.errors import UserError
 
@@ -263,18 +263,6 @@ class SweepSpec(_Model):
 
 
 # ------------------------------------------------------------------- loading
-def _format_error(source: Path, err: ValidationError) -> str:
-    first = err.errors()[0]
-    loc = ".".join(str(p) for p in first["loc"] if not str(p).startswith("function-"))
-    msg = first["msg"].removeprefix("Value error, ")
-    if first["type"] not in ("value_error", "missing", "extra_forbidden") and "input" in first:
-        given = first["input"]
-        if isinstance(given, (int, float, str, bool)) or given is None:
-            msg += f" (got {given!r})"
-    more = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
-    return f"{source}: {loc + ': ' if loc else ''}{msg}{more}"
-
-
 def parse_sweep_spec(data: Any, source: str | Path = "<sweep spec>") -> SweepSpec:
     """Validate an already-loaded mapping; raises :class:`SweepSpecError`."""
     if not isinstance(data, dict):
@@ -282,20 +270,10 @@ def parse_sweep_spec(data: Any, source: str | Path = "<sweep spec>") -> SweepSpe
     try:
         return SweepSpec.model_validate(data)
     except ValidationError as e:
-        raise SweepSpecError(_format_error(Path(str(source)), e)) from None
+        raise SweepSpecError(format_validation_error(source, e)) from None
 
 
 def load_sweep_spec(path: str | Path) -> SweepSpec:
     """Read and validate a sweep-spec YAML file (structure only; see :func:`harness.sweep.expand.expand`)."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise SweepSpecError(f"{path}: cannot read sweep spec ({e.strerror or e})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark else ""
-        raise SweepSpecError(f"{path}: invalid YAML{where}: {getattr(e, 'problem', e)}") from None
+    data = read_yaml(path, SweepSpecError, "sweep spec")
     return parse_sweep_spec(data, path)
