@@ -7,6 +7,7 @@ count as much as near ones; bottom edge weighted x2 since the distance estimator
 Augmentation: horizontal flip, brightness/contrast/colour jitter, sensor noise.
 
     python -m training.train --data data/train0 data/train1 --out data/ckpt.pt --epochs 30
+    python -m training.train ... --init data/ckpt.pt --lr 1e-3   # fine-tune (a second cosine cycle)
 """
 
 from __future__ import annotations
@@ -73,12 +74,15 @@ def make_batch(ds: Dataset, idx: np.ndarray, rng: np.random.Generator, stride: i
 
 
 def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed: int, threads: int,
-          log_every: int = 20) -> None:
+          log_every: int = 20, init: Path | None = None) -> None:
+    """Train (from scratch, or fine-tune from checkpoint ``init``) and save to ``out`` after every epoch."""
     torch.manual_seed(seed)
     torch.set_num_threads(threads)
     rng = np.random.default_rng(seed)
     ds = Dataset.concat(data)
     net = CenterNetVehicle()
+    if init is not None:
+        net.load_state_dict(torch.load(init, map_location="cpu")["model"])
     stride = net.stride
     print(f"{len(ds.images)} images, {int((ds.boxes[:, 5] < 0.5).sum())} boxes, params {n_params(net)}", flush=True)
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
@@ -107,7 +111,8 @@ def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed:
             if step % log_every == 0:
                 print(f"ep {ep} step {step}/{total} hm {l_hm.item():.3f} box {l_box.item():.3f} "
                       f"lr {sched.get_last_lr()[0]:.2e} {time.time() - t0:.0f}s", flush=True)
-        torch.save({"model": net.state_dict(), "epoch": ep + 1, "seed": seed}, out)
+        torch.save({"model": net.state_dict(), "epoch": ep + 1, "seed": seed,
+                    "init": None if init is None else str(init)}, out)
     print(f"done in {time.time() - t0:.0f}s -> {out}", flush=True)
 
 
@@ -120,9 +125,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--lr", type=float, default=3e-3)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--init", type=Path, default=None, help="fine-tune from this checkpoint's weights")
     a = ap.parse_args(argv)
     a.out.parent.mkdir(parents=True, exist_ok=True)
-    train(a.data, a.out, a.epochs, a.batch, a.lr, a.seed, a.threads)
+    train(a.data, a.out, a.epochs, a.batch, a.lr, a.seed, a.threads, init=a.init)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from harness.commands.detector_args import add_detector_arguments, detector_config
 from monorarp.errors import UserError
 
 
@@ -17,7 +18,7 @@ def _split(values: list[str] | None) -> list[str]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from harness.bench.trackers import DEFAULT_DETECTOR, DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
+    from harness.bench.trackers import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
 
     p = sub.add_parser("bench", help="benchmark component alternatives on identical frames",
                        description="Benchmark component alternatives on identical simulated frames.")
@@ -31,15 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"scenario files, space- or comma-separated (default: {','.join(DEFAULT_SCENARIOS)})")
     t.add_argument("--trackers", nargs="+", default=None, metavar="NAME",
                    help=f"registered trackers, space- or comma-separated (default: {','.join(DEFAULT_TRACKERS)})")
-    t.add_argument("--detector", default=DEFAULT_DETECTOR, metavar="NAME|PATH.onnx|oracle",
-                   help=f"registered detector, ONNX model file, or 'oracle' (ground-truth boxes); default: "
-                        f"{DEFAULT_DETECTOR}")
-    t.add_argument("--oracle-jitter", type=float, default=None, metavar="PX",
-                   help="oracle: Gaussian std (px) added to each box edge (default 0)")
-    t.add_argument("--oracle-miss-rate", type=float, default=None, metavar="R",
-                   help="oracle: probability of dropping each object (default 0)")
-    t.add_argument("--oracle-fp-rate", type=float, default=None, metavar="R",
-                   help="oracle: mean number of false boxes per frame (Poisson; default 0)")
+    add_detector_arguments(t)
     t.add_argument("--frames", type=int, default=DEFAULT_FRAMES, metavar="N",
                    help=f"frames per scenario, at most its duration x fps (default {DEFAULT_FRAMES})")
     t.add_argument("--out", type=Path, default=Path("runs") / "bench-trackers", metavar="DIR",
@@ -51,20 +44,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run_trackers(args: argparse.Namespace) -> int:
     from harness.bench.trackers import (DEFAULT_SCENARIOS, DEFAULT_TRACKERS, BenchConfig, run_bench, stderr_log,
                                         table_iii)
-    from monorarp.pipeline import ComponentConfig
 
     trackers = _split(args.trackers) if args.trackers is not None else list(DEFAULT_TRACKERS)
     scenarios = _split(args.scenarios) if args.scenarios is not None else list(DEFAULT_SCENARIOS)
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
-    oracle_kw = {k: v for k, v in (("jitter_px", args.oracle_jitter), ("miss_rate", args.oracle_miss_rate),
-                                   ("false_positives", args.oracle_fp_rate)) if v is not None}
-    if oracle_kw and args.detector != "oracle":
-        raise UserError("--oracle-jitter/--oracle-miss-rate/--oracle-fp-rate need --detector oracle")
-    detector = args.detector
-    if detector.lower().endswith(".onnx"):
-        detector = str(Path(detector).expanduser())
-    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, detector=ComponentConfig(name=detector, kwargs=oracle_kw),
+    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, detector=detector_config(args),
                       frames=args.frames)
     result = run_bench(cfg, out_dir=args.out, log=stderr_log)
     print(table_iii(result))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from harness.commands.detector_args import add_detector_arguments, detector_config
 from monorarp.errors import UserError
 
 
@@ -22,15 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "DIR/metrics.json, DIR/per_object.csv, DIR/per_frame.csv, DIR/annotated.mp4, DIR/frames.mp4, "
                     "DIR/camera.json and DIR/ground_truth.jsonl.")
     p.add_argument("scenario", type=Path, metavar="SCENARIO.yaml", help="scenario file")
-    p.add_argument("--detector", default="centernet", metavar="NAME|PATH.onnx|oracle",
-                   help="registered detector name, an ONNX model file, or 'oracle' (ground-truth boxes); "
-                        "default: centernet")
-    p.add_argument("--oracle-jitter", type=float, default=None, metavar="PX",
-                   help="oracle: Gaussian std (px) added to each box edge (default 0)")
-    p.add_argument("--oracle-miss-rate", type=float, default=None, metavar="R",
-                   help="oracle: probability of dropping each object (default 0)")
-    p.add_argument("--oracle-fp-rate", type=float, default=None, metavar="R",
-                   help="oracle: mean number of false boxes per frame (Poisson; default 0)")
+    add_detector_arguments(p)
     p.add_argument("--tracker", default="particle", metavar="NAME", help="registered tracker (default: particle)")
     p.add_argument("--velocity", choices=("kalman", "difference"), default="kalman",
                    help="relative velocity of the state estimator (default: kalman)")
@@ -61,15 +54,8 @@ def pipeline_config(args: argparse.Namespace):
     """The :class:`PipelineConfig` the command line describes."""
     from monorarp.pipeline import ComponentConfig, PipelineConfig
 
-    oracle_kw = {k: v for k, v in (("jitter_px", args.oracle_jitter), ("miss_rate", args.oracle_miss_rate),
-                                   ("false_positives", args.oracle_fp_rate)) if v is not None}
-    if oracle_kw and args.detector != "oracle":
-        raise UserError("--oracle-jitter/--oracle-miss-rate/--oracle-fp-rate need --detector oracle")
-    detector = args.detector
-    if detector.lower().endswith(".onnx"):
-        detector = str(Path(detector).expanduser())
     ego = getattr(args, "ego_speed", "none")
-    return PipelineConfig(detector=ComponentConfig(name=detector, kwargs=oracle_kw),
+    return PipelineConfig(detector=detector_config(args),
                           tracker=ComponentConfig(name=args.tracker),
                           state=ComponentConfig(name="geometric", kwargs={"velocity": args.velocity}),
                           risk=ComponentConfig(name=getattr(args, "risk", "ttc")),

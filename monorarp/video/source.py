@@ -1,0 +1,191 @@
+"""Frames with timestamps from a video file or a webcam (``cv2.VideoCapture``).
+
+Timestamps (s, :attr:`monorarp.types.Frame.t`):
+
+* **File**: the container's presentation time of each decoded frame
+  (``CAP_PROP_POS_MSEC`` read after the frame is decoded). Where the backend
+  gives none (not finite, negative, or not increasing after the first frame)
+  the frame gets ``index / fps`` with the container's frame rate, and if even
+  that does not increase, the previous time plus one frame period. The wall
+  clock never enters: a file processed slowly or quickly gets the same times.
+* **Webcam**: a monotonic capture clock, ``time.monotonic()`` read right after
+  each ``read()`` returns, minus its value at the first frame (so the first
+  frame is at t = 0). A live camera has no container; this is the time at
+  which the frame reached the program, including driver latency.
+
+Errors are :class:`VideoSourceError` (one line, a :class:`~monorarp.errors.UserError`):
+a missing file, a file no backend can decode (random bytes, an empty file),
+a webcam index that cannot be opened, and -- while iterating -- a file whose
+decoding stops before the frame count its container announces (truncated or
+corrupt data).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+
+import cv2
+import numpy as np
+
+from monorarp.errors import UserError
+from monorarp.types import Frame
+
+# Frames a container's announced count may exceed the decoded count by before
+# the file is reported as truncated (counts from some containers are estimates).
+COUNT_SLACK_FRAMES = 2
+COUNT_SLACK_FRACTION = 0.01
+
+
+class VideoSourceError(UserError, OSError):
+    """A video input that cannot be opened or decoded."""
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """What the source reports before decoding: frame size (px), rate (Hz) and count (None if unknown)."""
+
+    name: str
+    width: int
+    height: int
+    fps: float | None
+    frame_count: int | None
+    is_webcam: bool
+
+
+def parse_input(spec: str | int | Path) -> str | int:
+    """An all-digit string (or an int) is a webcam index; anything else a file path."""
+    if isinstance(spec, int):
+        return spec
+    s = str(spec)
+    return int(s) if re.fullmatch(r"\d+", s.strip()) else s
+
+
+@contextmanager
+def _quiet_opencv() -> Iterator[None]:
+    """Silence OpenCV's and FFmpeg's own stderr chatter while opening (errors are ours to report)."""
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET; read when FFmpeg is first used
+    log = getattr(getattr(cv2, "utils", None), "logging", None)
+    previous = log.getLogLevel() if log is not None else None
+    if log is not None:
+        log.setLogLevel(log.LOG_LEVEL_ERROR)
+    try:
+        yield
+    finally:
+        if log is not None and previous is not None:
+            log.setLogLevel(previous)
+
+
+def _positive(x: float) -> float | None:
+    return float(x) if math.isfinite(x) and x > 0 else None
+
+
+class VideoSource:
+    """Iterate :class:`~monorarp.types.Frame` s (BGR uint8) from a file path or webcam index.
+
+    Opening decodes the first frame, so an undecodable input fails here, before
+    any output is created. Use as a context manager or call :meth:`close`.
+    """
+
+    def __init__(self, spec: str | int | Path) -> None:
+        target = parse_input(spec)
+        self.is_webcam = isinstance(target, int)
+        self.name = f"webcam {target}" if self.is_webcam else str(target)
+        if not self.is_webcam:
+            path = Path(target)
+            if not path.exists():
+                raise VideoSourceError(f"{path}: no such file")
+            if not path.is_file():
+                raise VideoSourceError(f"{path}: not a file")
+            if path.stat().st_size == 0:
+                raise VideoSourceError(f"{path}: empty file, not a video")
+        with _quiet_opencv():
+            self._cap = cv2.VideoCapture(target)
+            if not self._cap.isOpened():
+                self._cap.release()
+                raise VideoSourceError(f"webcam {target}: cannot open camera by index" if self.is_webcam
+                                       else f"{target}: cannot open as a video (unknown format or corrupt file)")
+            ok, first = self._cap.read()
+        if not ok or first is None or first.ndim != 3 or first.shape[2] != 3:
+            self._cap.release()
+            raise VideoSourceError(f"{self.name}: no decodable frame")
+        self._first: np.ndarray | None = first
+        self._first_pos_ms = self._cap.get(cv2.CAP_PROP_POS_MSEC)
+        self._first_clock = time.monotonic()
+        count = self._cap.get(cv2.CAP_PROP_FRAME_COUNT)
+        self.info = VideoInfo(
+            name=self.name, width=int(first.shape[1]), height=int(first.shape[0]),
+            fps=_positive(self._cap.get(cv2.CAP_PROP_FPS)),
+            frame_count=None if self.is_webcam or not _positive(count) else int(round(count)),
+            is_webcam=self.is_webcam,
+        )
+        self.frames_read = 0
+
+    # ------------------------------------------------------------------ frames
+    def frames(self, max_frames: int | None = None) -> Iterator[Frame]:
+        """Frames in decode order, index from 0; stops after ``max_frames`` if given.
+
+        Raises :class:`VideoSourceError` if a file stops decoding before the
+        frame count announced by its container (only when not cut short by
+        ``max_frames``). A source yields its frames once.
+        """
+        if self._first is None:
+            raise ValueError(f"{self.name}: frames() can be iterated once, on an open source")
+        prev_t = -math.inf
+        index = 0
+        while max_frames is None or index < max_frames:
+            if index == 0:
+                img, pos_ms, clock = self._first, self._first_pos_ms, self._first_clock
+                self._first = None
+            else:
+                ok, img = self._cap.read()
+                if not ok or img is None:
+                    break
+                pos_ms, clock = self._cap.get(cv2.CAP_PROP_POS_MSEC), time.monotonic()
+            t = (clock - self._first_clock) if self.is_webcam else self._file_time(index, pos_ms, prev_t)
+            prev_t = t
+            self.frames_read = index + 1
+            yield Frame(index=index, t=t, image=img)
+            index += 1
+        else:
+            return
+        self._check_complete(index)
+
+    def _file_time(self, index: int, pos_ms: float, prev_t: float) -> float:
+        """Container time of frame ``index`` (s); fallbacks in the module docstring."""
+        t = pos_ms / 1000.0
+        if math.isfinite(t) and t >= 0 and (index == 0 or t > prev_t):
+            return t
+        fps = self.info.fps
+        if fps is None:
+            raise VideoSourceError(f"{self.name}: frame {index} has no timestamp and the container "
+                                   "gives no frame rate")
+        t = index / fps
+        return t if t > prev_t else prev_t + 1.0 / fps
+
+    def _check_complete(self, decoded: int) -> None:
+        expected = self.info.frame_count
+        if self.is_webcam or expected is None:
+            return
+        if expected - decoded > max(COUNT_SLACK_FRAMES, COUNT_SLACK_FRACTION * expected):
+            raise VideoSourceError(f"{self.name}: decoding failed after frame {decoded - 1} "
+                                   f"(the container announces {expected} frames); file truncated or corrupt")
+
+    # ------------------------------------------------------------- lifecycle
+    def close(self) -> None:
+        self._first = None
+        self._cap.release()
+
+    def __enter__(self) -> "VideoSource":
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
