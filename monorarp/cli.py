@@ -7,6 +7,7 @@ import of the harness while ``monorarp render``/``run``/``sweep`` live there.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from importlib.metadata import entry_points
 
@@ -39,6 +40,9 @@ def main(argv: list[str] | None = None) -> int:
         message = " ".join(str(e).split())
         print(f"monorarp {args.command}: error: {message}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. `monorarp ... | head`: the reader left (recipe of Python's signal docs)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except KeyboardInterrupt:
         print(f"monorarp {args.command}: interrupted", file=sys.stderr)
         return 130
