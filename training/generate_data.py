@@ -33,6 +33,7 @@ from scipy import ndimage  # noqa: E402
 from harness.render import Renderer  # noqa: E402
 from harness.scenario import ScenarioError, parse_scenario  # noqa: E402
 from harness.simulation import simulate  # noqa: E402
+from monorarp.detection.fovea import Fovea  # noqa: E402
 from monorarp.detection.letterbox import Letterbox  # noqa: E402
 
 NET_W, NET_H = 320, 192
@@ -99,8 +100,22 @@ def visible_boxes(id_mask: np.ndarray, full_pixels: dict[int, float]) -> tuple[n
     return np.array(ids, int), np.array(boxes, float).reshape(-1, 4), np.array(vis, float)
 
 
+def fovea_of(scen) -> Fovea | None:
+    """The detector's second-pass crop for this scenario's camera (default fovea parameters)."""
+    from monorarp.detection.centernet import CenterNetDetector
+
+    cam = scen.camera.model()
+    kw = CenterNetDetector.FOVEA_DEFAULTS
+    return Fovea.place(cam.width, cam.height, NET_W, NET_H, cam.cx, cam.horizon_row, kw["fovea_zoom"],
+                       kw["fovea_below"])
+
+
 def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, frame_stride: int,
-             resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float) -> None:
+             resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
+             fovea: bool = False) -> None:
+    """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
+    (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
+    the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle)."""
     out.mkdir(parents=True, exist_ok=True)
     images, rows, metas = [], [], []
     t0 = time.time()
@@ -114,22 +129,30 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         except ScenarioError:
             skipped += 1
             continue
-        lb = Letterbox.fit(res[0], res[1], NET_W, NET_H)
+        views = [(None, Letterbox.fit(res[0], res[1], NET_W, NET_H))]
+        fov = fovea_of(scen) if fovea else None
+        if fov is not None:
+            views.append((fov, Letterbox.fit(fov.w, fov.h, NET_W, NET_H)))
         with Renderer(scen) as r:
             for wstate in frames:
                 fr = r.render(wstate)
-                ids, boxes, vis = visible_boxes(fr.id_mask, fr.full_pixels)
-                net = lb.to_dst(boxes)
-                big = ((net[:, 2] - net[:, 0]) >= min_size) & ((net[:, 3] - net[:, 1]) >= min_size)
-                required = (vis >= min_visibility) & big
-                i = len(images)
-                images.append(lb.apply(fr.image))
-                for b, req in zip(boxes, required):
-                    rows.append((i, *b, 0.0 if req else 1.0))
-                c = scen.camera
-                metas.append({"src_w": res[0], "src_h": res[1], "scenario": scen.name, "frame": wstate.frame,
-                              "hfov_deg": c.hfov_deg, "height_m": c.height_m, "pitch_deg": c.pitch_deg,
-                              "n_required": int(required.sum())})
+                for view, lb in views:
+                    image, mask = fr.image, fr.id_mask
+                    if view is not None:
+                        image, mask = view.cut(image), view.cut(mask)
+                    ids, boxes, vis = visible_boxes(mask, fr.full_pixels)
+                    net = lb.to_dst(boxes)
+                    big = ((net[:, 2] - net[:, 0]) >= min_size) & ((net[:, 3] - net[:, 1]) >= min_size)
+                    required = (vis >= min_visibility) & big
+                    i = len(images)
+                    images.append(lb.apply(image))
+                    for b, req in zip(boxes, required):
+                        rows.append((i, *b, 0.0 if req else 1.0))
+                    c = scen.camera
+                    metas.append({"src_w": lb.src_w, "src_h": lb.src_h, "scenario": scen.name, "frame": wstate.frame,
+                                  "hfov_deg": c.hfov_deg, "height_m": c.height_m, "pitch_deg": c.pitch_deg,
+                                  "view": "full" if view is None else [view.x0, view.y0, view.w, view.h],
+                                  "n_required": int(required.sum())})
         if (s + 1) % 10 == 0:
             print(f"{s + 1}/{n_scenarios} scenarios, {len(images)} images, {time.time() - t0:.0f}s", flush=True)
     np.save(out / "images.npy", np.stack(images))
@@ -138,7 +161,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         "net_input": [NET_W, NET_H], "seed": seed, "scenarios": n_scenarios, "skipped_scenarios": skipped,
         "frames_per_scenario": frames_per_scenario, "frame_stride": frame_stride,
         "resolutions": [list(r) for r in resolutions], "min_visibility": min_visibility,
-        "min_size_net_px": min_size, "images": metas}, indent=1))
+        "min_size_net_px": min_size, "fovea": fovea, "images": metas}, indent=1))
     req = sum(m["n_required"] for m in metas)
     print(f"wrote {len(images)} images, {req} required boxes, {len(rows) - req} ignored to {out} "
           f"({skipped} scenarios skipped) in {time.time() - t0:.0f}s", flush=True)
@@ -154,10 +177,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--resolutions", type=str, default=None, help="e.g. 640x360,1280x720")
     ap.add_argument("--min-visibility", type=float, default=0.3)
     ap.add_argument("--min-size", type=float, default=3.0, help="px at the net's 320x192 scale")
+    ap.add_argument("--fovea", action="store_true", help="also store each frame's fovea crop (second pass)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
-    generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size)
+    generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea)
 
 
 if __name__ == "__main__":

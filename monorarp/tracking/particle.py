@@ -90,7 +90,7 @@ class ParticleTracker:
     """
 
     def __init__(self, n_particles: int = 100, pos_noise: float = 0.03, size_noise: float = 0.02,
-                 meas_noise: float = 0.05, min_iou: float = 0.2, min_hits: int = 2, max_coast: int = 10,
+                 meas_noise: float = 0.05, min_iou: float = 0.2, min_hits: int = 2, max_coast: int = 5,
                  min_score: float = 0.0, box_output: str = "detection", seed: int = 0) -> None:
         if n_particles < 1:
             raise ValueError(f"n_particles must be >= 1, got {n_particles}")
