@@ -72,7 +72,7 @@ def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pip
     factories = {k: get_factory(k, c.name) for k, c in stages.items() if c is not None}
     built = {k: instantiate(f, stages[k].kwargs, camera) for k, f in factories.items()}
     if onnx:
-        built["detector"] = load_detector(cfg.detector.name, **cfg.detector.kwargs)
+        built["detector"] = load_detector(cfg.detector.name, camera=camera, **cfg.detector.kwargs)
     return Pipeline(detector=built["detector"], tracker=built["tracker"], state=built["state"],
                     risk=built["risk"], ego_speed=built.get("ego_speed"))
 

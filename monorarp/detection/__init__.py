@@ -28,23 +28,24 @@ class Detector(Protocol):
     def detect(self, image: np.ndarray) -> list[Detection]: ...
 
 
-def load_detector(name_or_path: str | Path, **kw: Any) -> Detector:
+def load_detector(name_or_path: str | Path, camera: Any = None, **kw: Any) -> Detector:
     """A detector from a registered name (``centernet``, ``yolo``, plug-ins) or an ``.onnx`` path.
 
     For a path the output layout decides: outputs ``heatmap`` + ``ltrb`` -> CenterNet,
-    one ``(1, 4+80, N)`` output -> YOLO. ``kw`` go to the detector's constructor.
+    one ``(1, 4+80, N)`` output -> YOLO. ``kw`` go to the detector's constructor; ``camera``
+    (a :class:`~monorarp.camera.CameraModel`) to detectors that use one (CenterNet's fovea).
     Raises :class:`~monorarp.errors.UserError` (one line) for an unknown name, a missing or
     invalid file, or an unrecognised layout.
     """
     s = str(name_or_path)
     if not s.lower().endswith(".onnx"):
-        from monorarp.registry import create
+        from monorarp.registry import build
 
-        return create("detector", s, **kw)
+        return build("detector", s, kw, camera)
     path = Path(s)
     session = open_session(path, 1)
     if is_centernet_layout(session):
-        return CenterNetDetector(model_path=path, **kw)
+        return CenterNetDetector(model_path=path, camera=camera, **kw)
     outs = outputs(session)
     if len(outs) == 1:
         try:

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from monorarp.tracking.association import iou_matrix
+
 
 @dataclass(frozen=True)
 class Fovea:
@@ -79,17 +81,6 @@ class Fovea:
         if self.y0 + self.h < self.src_h:
             ok &= b[:, 3] <= hi_y - margin_px
         return ok
-
-
-def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, M) IoU of (N, 4) and (M, 4) boxes (x1, y1, x2, y2)."""
-    a = np.asarray(a, dtype=np.float64).reshape(-1, 1, 4)
-    b = np.asarray(b, dtype=np.float64).reshape(1, -1, 4)
-    iw = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]), 0, None)
-    ih = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]), 0, None)
-    inter = iw * ih
-    area = lambda x: np.clip(x[..., 2] - x[..., 0], 0, None) * np.clip(x[..., 3] - x[..., 1], 0, None)  # noqa: E731
-    return inter / np.maximum(area(a) + area(b) - inter, 1e-9)
 
 
 def merge(full_boxes: np.ndarray, full_scores: np.ndarray, fov_boxes: np.ndarray, fov_scores: np.ndarray,
