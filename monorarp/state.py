@@ -55,8 +55,11 @@ Positions are output filtered. Coasting tracks (no detection this frame) only
 predict, and are dropped once they have coasted more than ``max_coast_used``
 consecutive frames, so stale tracks never feed the risk estimator.
 
-**Boxes cut by the image border.** A box edge within ``border_tol_px`` (1 px)
-of the image border is not the vehicle's edge but the border's. A vehicle in an
+**Boxes cut by the image border.** A box edge within ``border_tol_px`` (4 px)
+of the image border is not the vehicle's edge but the border's (4 px, not 1: a
+detector's box of a vehicle cut by the border stops a few pixels short of it --
+seen on highway_cruise with the shipped CenterNet, 2-3 px short, which let the
+far-edge rule below read a shrinking lateral distance and raise false TTC warnings). A vehicle in an
 adjacent lane leaving the view has its far edge cut: equation 4 would then read
 the border and the lateral distance would shrink frame after frame (a false
 lateral velocity of several m/s towards the ego, and false TTC warnings). Then
@@ -89,6 +92,8 @@ import numpy as np
 from monorarp.camera import CameraModel
 from monorarp.registry import register
 from monorarp.types import ObjectState, Track
+
+BORDER_TOL_PX = 4.0   # a box edge this close to the image border (px) is taken as cut by it
 
 
 # --------------------------------------------------------------------- the paper's formulas
@@ -123,7 +128,7 @@ def border_flags(camera: CameraModel, boxes: np.ndarray, tol_px: float | None = 
 
 
 def box_distance(camera: CameraModel, boxes: np.ndarray, contact_offset_m: float = 0.95,
-                 ground_clearance_m: float = 0.17, border_tol_px: float | None = 1.0) -> np.ndarray:
+                 ground_clearance_m: float = 0.17, border_tol_px: float | None = BORDER_TOL_PX) -> np.ndarray:
     """(M,) ``d_y`` (m) of each box's rear face from its bottom edge (equation 3 + contact-line correction).
 
     NaN for boxes not below the horizon and for boxes whose bottom edge touches the
@@ -138,7 +143,7 @@ def box_distance(camera: CameraModel, boxes: np.ndarray, contact_offset_m: float
 
 def lateral_terms(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float = 1.8,
                   vehicle_length_m: float = 4.5, ground_clearance_m: float = 0.17,
-                  border_tol_px: float | None = 1.0) -> np.ndarray:
+                  border_tol_px: float | None = BORDER_TOL_PX) -> np.ndarray:
     """(M, 3) ``(a, b, c)`` with ``d_x = a (d_y + b) + c`` (m) for each box; NaN row: not measurable.
 
     Equation 4 is linear in the distance ``d_y``, so the box gives these terms and any
@@ -196,7 +201,7 @@ def near_edge_terms(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: flo
 
 def contact_line_cut(camera: CameraModel, boxes: np.ndarray, d_x: np.ndarray, d_y: np.ndarray,
                      vehicle_width_m: float = 1.8, contact_offset_m: float = 0.95,
-                     border_tol_px: float | None = 1.0) -> np.ndarray:
+                     border_tol_px: float | None = BORDER_TOL_PX) -> np.ndarray:
     """(M,) True where the far edge is cut and the rear contact line's inner end is out of view.
 
     Then no part of the tyres' contact line is in the image and the box's bottom edge is some
@@ -220,7 +225,7 @@ def lateral_from_terms(terms: np.ndarray, d_y: np.ndarray) -> np.ndarray:
 
 def measure_boxes(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float = 1.8,
                   contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17,
-                  vehicle_length_m: float = 4.5, border_tol_px: float | None = 1.0) -> np.ndarray:
+                  vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX) -> np.ndarray:
     """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` in the ego frame (m).
 
     NaN where a box does not give the value: not below the horizon, bottom edge on the
@@ -290,7 +295,7 @@ class StateEstimator:
                  process_std: float = 3.0, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,
                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17, max_coast_used: int = 2,
                  init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0,
-                 vehicle_length_m: float = 4.5, border_tol_px: float | None = 1.0) -> None:
+                 vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
