@@ -356,6 +356,18 @@ class StateEstimator:
                                 self.contact_offset_m, self.border_tol_px)
         return np.where(gone, np.nan, d_y), terms
 
+    @property
+    def near_limit_m(self) -> float:
+        """Distance (m) to a rear face whose contact line lies on the lowest row not taken as the border's.
+
+        A box whose bottom edge is within ``border_tol_px`` of the bottom border is cut: its vehicle
+        is nearer than this.
+        """
+        row = self.camera.height - 0.5 - (self.border_tol_px or 0.0)
+        box = np.array([[self.camera.cx - 1.0, row - 1.0, self.camera.cx + 1.0, row]])
+        d = box_distance(self.camera, box, self.contact_offset_m, self.ground_clearance_m, None)[0]
+        return max(float(d), 0.0)
+
     def measurement_var(self, z: np.ndarray) -> np.ndarray:
         """(M, 2) variances (m^2) of measured (d_x, d_y): ``pixel_std`` through equations 3 and 4.
 
@@ -385,7 +397,9 @@ class StateEstimator:
         new_ok = np.isfinite(d_y) & np.isfinite(lateral_from_terms(terms, d_y))
         ok = known | new_ok
         if self.velocity == "kalman":
-            out = self._kalman(ids, d_y, terms, coasting, known, ok, t)
+            boxes = np.array([tr.box for tr in usable], dtype=float)
+            cut_bottom = border_flags(self.camera, boxes, self.border_tol_px)[:, 2]
+            out = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom)
         else:
             out = self._difference(ids, d_y, terms, known, ok, t)
         return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}
@@ -408,8 +422,15 @@ class StateEstimator:
                 self._state[i], self._t[i] = zi, t
         return np.concatenate([z, v], axis=1)
 
-    def _kalman(self, ids, d_y, terms, coasting, known, ok, t) -> np.ndarray:
-        """Kalman filter per track and axis, vectorised over both (arrays of shape (M, 2, n))."""
+    def _kalman(self, ids, d_y, terms, coasting, known, ok, t, cut_bottom=None) -> np.ndarray:
+        """Kalman filter per track and axis, vectorised over both (arrays of shape (M, 2, n)).
+
+        A box cut by the image's bottom border gives no distance, but bounds it: the vehicle's
+        rear is nearer than the ground seen at the bottom row (:meth:`near_limit_m`) and not
+        behind the camera. The predicted distance is clamped into ``[0, near_limit]`` there
+        (velocity and acceleration along y zeroed at 0), so a vehicle that stays that close
+        (e.g. after a crash) is not extrapolated through the ego.
+        """
         m, n = len(ids), len(self._prior_var)
         x, P = np.zeros((m, 2, n)), np.zeros((m, 2, n, n))
         for j, (i, k) in enumerate(zip(ids, known)):
@@ -433,6 +454,12 @@ class StateEstimator:
         upd = (known & ~coasting)[:, None] & has
         xu, Pu = kf_update(x, P, np.nan_to_num(zf), r)
         x, P = np.where(upd[..., None], xu, x), np.where(upd[..., None, None], Pu, P)
+        if cut_bottom is not None:
+            blind = cut_bottom & known & ~np.isfinite(d_y)
+            x[blind, 1, 0] = np.minimum(x[blind, 1, 0], self.near_limit_m)
+            behind = blind & (x[:, 1, 0] < 0.0)
+            x[behind, 1, 0] = 0.0
+            x[behind, 1, 1:] = 0.0
         for j, i in enumerate(ids):
             if ok[j]:
                 self._state[i], self._t[i] = (x[j], P[j]), t

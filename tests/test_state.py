@@ -306,7 +306,7 @@ def test_bottom_cut_track_keeps_its_filtered_distance(level_cam, velocity):
         assert s is not None
         assert s.d_y <= last_whole + 1e-6                 # never the (farther) distance of the border row
         if velocity == "kalman":
-            assert s.d_y == pytest.approx(d_true, abs=0.3)  # predicted on
+            assert s.d_y == pytest.approx(max(d_true, 0.0), abs=0.3)  # predicted on, never behind the camera
     # A new track whose first box is cut is not output.
     est.reset()
     assert est.update([Track(2, visible_box(level_cam, 0.0, 1.5))], 0.0) == {}
@@ -338,3 +338,24 @@ def test_vehicle_leaving_the_view_gives_no_lateral_velocity_or_false_warning(pit
     assert np.abs(v_x).max() < 0.6 and np.abs(d_x - 4.0).max() < 0.4 and not warn.any()
     v_x_old, _, _ = run(None)                          # the far edge taken at the border
     assert v_x_old.min() < -1.5
+
+
+def test_vehicle_stuck_below_the_bottom_border_is_not_extrapolated_through_the_ego():
+    """A lead closing at 20 m/s whose box then stays cut by the bottom border (e.g. after a crash):
+    its distance must stay within [0, near_limit], not run off to minus tens of metres."""
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, math.radians(2.0))
+    est = StateEstimator(cam)
+    fps = 15.0
+    half_w = 1.0
+    states = []
+    for k in range(60):
+        t = k / fps
+        d = max(20.0 - 20.0 * t, 1.0)      # rear face distance (m); reaches 1 m at t = 0.95 s and stays
+        rear_ground = np.array([[-half_w, d + 0.95, -1.3], [half_w, d + 0.95, -1.3]])   # tyre contact line
+        uv = cam.project_ego(rear_ground)
+        top = cam.project_ego(np.array([[0.0, d, 0.2]]))[0, 1]
+        box = (uv[0, 0], top, uv[1, 0], min(uv[0, 1], cam.height - 0.5))
+        states.append(est.update([Track(id=1, box=box)], t)[1])
+    late = [s.d_y for s in states[30:]]
+    assert all(0.0 <= y <= est.near_limit_m + 1e-9 for y in late)
+    assert states[-1].v_y == 0.0 or states[-1].d_y > 0.0
