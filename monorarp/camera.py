@@ -186,34 +186,27 @@ class CameraModel:
 
     @classmethod
     def _from_dict_intrinsics(cls, d: dict, source: str) -> "CameraModel":
-        """:meth:`from_dict` without ``horizon_row`` (pitch 0 when no pitch field is given)."""
-        try:
-            width, height = int(d["width"]), int(d["height"])
-            if "pitch_rad" in d:
-                pitch = float(d["pitch_rad"])
-            else:
-                pitch = math.radians(float(d.get("pitch_deg", 0.0)))
-            mount = dict(height_m=float(d["height_m"]), pitch_rad=pitch,
-                         lateral_offset_m=float(d.get("lateral_offset_m", 0.0)),
-                         forward_offset_m=float(d.get("forward_offset_m", 0.0)))
-            if "K" in d:
-                K = np.asarray(d["K"], dtype=float)
-                if K.shape != (3, 3):
-                    raise CameraError(f"{source}: K must be 3x3, got shape {K.shape}")
-                return cls(width, height, K[0, 0], K[1, 1], K[0, 2], K[1, 2], **mount)
-            if "fx" in d:
-                return cls(width, height, float(d["fx"]), float(d.get("fy", d["fx"])),
-                           float(d.get("cx", (width - 1) / 2)), float(d.get("cy", (height - 1) / 2)), **mount)
-            if "hfov_deg" in d:
-                return cls.from_fov(width, height, float(d["hfov_deg"]), **mount)
-            raise CameraError(f"{source}: needs K, fx/fy/cx/cy or hfov_deg")
-        except KeyError as e:
-            raise CameraError(f"{source}: missing field {e.args[0]!r}") from None
-        except CameraError as e:
-            msg = str(e)
-            raise CameraError(msg if msg.startswith(source) else f"{source}: {msg}") from None
-        except (TypeError, ValueError) as e:
-            raise CameraError(f"{source}: {e}") from None
+        """:meth:`from_dict` without ``horizon_row`` (pitch 0 when no pitch field is given); its errors
+        are given their one-line form by :meth:`from_dict`."""
+        width, height = int(d["width"]), int(d["height"])
+        if "pitch_rad" in d:
+            pitch = float(d["pitch_rad"])
+        else:
+            pitch = math.radians(float(d.get("pitch_deg", 0.0)))
+        mount = dict(height_m=float(d["height_m"]), pitch_rad=pitch,
+                     lateral_offset_m=float(d.get("lateral_offset_m", 0.0)),
+                     forward_offset_m=float(d.get("forward_offset_m", 0.0)))
+        if "K" in d:
+            K = np.asarray(d["K"], dtype=float)
+            if K.shape != (3, 3):
+                raise CameraError(f"{source}: K must be 3x3, got shape {K.shape}")
+            return cls(width, height, K[0, 0], K[1, 1], K[0, 2], K[1, 2], **mount)
+        if "fx" in d:
+            return cls(width, height, float(d["fx"]), float(d.get("fy", d["fx"])),
+                       float(d.get("cx", (width - 1) / 2)), float(d.get("cy", (height - 1) / 2)), **mount)
+        if "hfov_deg" in d:
+            return cls.from_fov(width, height, float(d["hfov_deg"]), **mount)
+        raise CameraError(f"{source}: needs K, fx/fy/cx/cy or hfov_deg")
 
     def save(self, path: str | Path) -> None:
         Path(path).write_text(json.dumps(self.to_dict(), indent=2))
