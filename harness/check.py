@@ -101,6 +101,9 @@ DEFAULT_RULES: tuple[Rule, ...] = (
     Rule("lane_speed.rel_err_median", 0.01, LOWER, 0.1),
     Rule("lane_speed.abs_err_median_mps", 0.2, LOWER, 0.1),
     Rule("lane_speed.valid_fraction", 0.05, HIGHER),
+    Rule("warning.first_warning_ttc_s", 0.3, HIGHER),     # collision-warning timing (scorecard CI subset)
+    Rule("warning.false_alarms", 0, LOWER),
+    Rule("warning.episodes", 1, TWO),
 )
 
 

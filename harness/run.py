@@ -68,18 +68,18 @@ def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pip
     cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
     onnx = cfg.detector.name.lower().endswith(".onnx")
     stages = {"detector": None if onnx else cfg.detector, "tracker": cfg.tracker, "state": cfg.state,
-              "risk": cfg.risk, "ego_speed": cfg.ego_speed}
+              "risk": cfg.risk, "ego_speed": cfg.ego_speed, "warning": cfg.warning}
     factories = {k: get_factory(k, c.name) for k, c in stages.items() if c is not None}
     built = {k: instantiate(f, stages[k].kwargs, camera) for k, f in factories.items()}
     if onnx:
         built["detector"] = load_detector(cfg.detector.name, camera=camera, **cfg.detector.kwargs)
     return Pipeline(detector=built["detector"], tracker=built["tracker"], state=built["state"],
-                    risk=built["risk"], ego_speed=built.get("ego_speed"))
+                    risk=built["risk"], ego_speed=built.get("ego_speed"), warning=built.get("warning"))
 
 
 def describe(cfg: PipelineConfig) -> dict:
     """Component names and kwargs for ``metrics["config"]``."""
-    comps = {k: getattr(cfg, k) for k in ("detector", "tracker", "state", "risk", "ego_speed")}
+    comps = {k: getattr(cfg, k) for k in ("detector", "tracker", "state", "risk", "ego_speed", "warning")}
     return {"components": {k: c.name for k, c in comps.items() if c is not None},
             "component_kwargs": {k: jsonable(c.kwargs) for k, c in comps.items() if c is not None and c.kwargs}}
 
@@ -235,7 +235,8 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
         baseline = baseline_ttc_risk(results, camera)
         metrics, records = evaluate(ordered, results, eval_config, wall_time_s=wall, run_info=run_info,
                                     camera=camera, baseline_risk=baseline,
-                                    ego_speed_method=None if cfg.ego_speed is None else cfg.ego_speed.name)
+                                    ego_speed_method=None if cfg.ego_speed is None else cfg.ego_speed.name,
+                                    fcw_threshold_s=getattr(pipeline.warning, "ttc_threshold_s", None))
         metrics["risk"]["ego_speed_sources"] = _ego_speed_sources(results, pipeline, gps_speed)
         if tmp:
             write_metrics(metrics, tmp / METRICS_NAME)

@@ -111,6 +111,8 @@ class PlacedVehicle(_Model):
     lane_changes: bool = False
     length_m: float = Field(5.0, ge=3.0, le=20.0)
     width_m: float = Field(2.0, ge=1.4, le=3.0)
+    lateral_offset_m: float = Field(0.0, ge=-2.0, le=2.0, description=(
+        "offset of its centre from its lane's centre line, + right; held until a cut_in moves it"))
 
 
 class BrakeEvent(_Model):
@@ -200,6 +202,8 @@ class Scenario(_Model):
     events: list[Event] = []
     camera: Camera = Camera()
     render: Render = Render()
+    end_on_contact_s: float | None = Field(None, ge=0, le=10, description=(
+        "end the run this long (s) after the ego's first contact (crash flag); null: run the whole duration"))
 
     @property
     def n_frames(self) -> int:

@@ -9,13 +9,15 @@ Stage interfaces (any object with these methods works; built-ins come from
 * state     ``update(tracks, t) -> dict[int, ObjectState]``
 * risk      ``assess(states, t) -> RiskEstimate``; when it takes an ``ego_speed``
   keyword (m/s or None), it gets the frame's ego-speed estimate (same frame, both runners)
+* warning   ``update(states, risk, t) -> WarningState`` (optional): the forward-collision
+  warning decision, episodes with hysteresis (:mod:`monorarp.warning`)
 
 Two runners give identical outputs on offline input: :func:`run_sync` (one
 thread, frame after frame) and :func:`run_threaded` (each stage on its own
 thread, joined by bounded FIFO queues as in the paper, so stages of successive
 frames overlap). Time per stage and frame is recorded in ms
 (``time.perf_counter``) under ``detector``, ``ego_speed``, ``tracker``,
-``state``, ``risk`` and ``total`` (``ego_speed`` is 0 when there is no such
+``state``, ``risk``, ``warning`` and ``total`` (``ego_speed``/``warning`` are 0 when there is no such
 stage; ``total`` is the whole ``process`` call in the synchronous runner and
 the sum of the stages in the threaded one).
 """
@@ -33,7 +35,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from monorarp.camera import CameraModel
 from monorarp import registry
-from monorarp.types import Frame, FrameResult
+from monorarp.types import Frame, FrameResult, WarningState
 
 
 class ComponentConfig(BaseModel):
@@ -45,7 +47,7 @@ class ComponentConfig(BaseModel):
 
 
 class PipelineConfig(BaseModel):
-    """Which component fills each stage. ``ego_speed`` is optional."""
+    """Which component fills each stage. ``ego_speed`` and ``warning`` are optional (None = no such stage)."""
 
     model_config = ConfigDict(extra="forbid")
     detector: ComponentConfig
@@ -53,13 +55,16 @@ class PipelineConfig(BaseModel):
     state: ComponentConfig = ComponentConfig(name="geometric")
     risk: ComponentConfig = ComponentConfig(name="ttc")
     ego_speed: ComponentConfig | None = None
+    warning: ComponentConfig | None = ComponentConfig(name="fcw")
 
 
 class Pipeline:
     """One frame in, one :class:`FrameResult` out; see the module docstring for stage interfaces."""
 
-    def __init__(self, detector: Any, tracker: Any, state: Any, risk: Any, ego_speed: Any = None) -> None:
+    def __init__(self, detector: Any, tracker: Any, state: Any, risk: Any, ego_speed: Any = None,
+                 warning: Any = None) -> None:
         self.detector, self.tracker, self.state, self.risk, self.ego_speed = detector, tracker, state, risk, ego_speed
+        self.warning = warning
 
     @classmethod
     def from_config(cls, config: PipelineConfig | dict, camera: CameraModel | None = None) -> "Pipeline":
@@ -76,15 +81,15 @@ class Pipeline:
 
         return cls(detector=build("detector", cfg.detector), tracker=build("tracker", cfg.tracker),
                    state=build("state", cfg.state), risk=build("risk", cfg.risk),
-                   ego_speed=build("ego_speed", cfg.ego_speed))
+                   ego_speed=build("ego_speed", cfg.ego_speed), warning=build("warning", cfg.warning))
 
     def reset(self) -> None:
         """Start a new sequence: every stateful stage forgets its history."""
-        for stage in (self.detector, self.tracker, self.state, self.risk, self.ego_speed):
+        for stage in (self.detector, self.tracker, self.state, self.risk, self.ego_speed, self.warning):
             if hasattr(stage, "reset"):
                 stage.reset()
 
-    # The five stage steps, shared by both runners. Each takes and returns the
+    # The six stage steps, shared by both runners. Each takes and returns the
     # frame's working record (a dict), and records its own time.
     def _detect(self, rec: dict) -> dict:
         rec["detections"] = list(_timed(rec, "detector", self.detector.detect, rec["frame"].image))
@@ -114,9 +119,16 @@ class Pipeline:
             rec["risk"] = _timed(rec, "risk", self.risk.assess, rec["states"], rec["frame"].t)
         return rec
 
+    def _warn(self, rec: dict) -> dict:
+        if self.warning is None:
+            rec["warning"], rec["timings"]["warning"] = WarningState(), 0.0
+        else:
+            rec["warning"] = _timed(rec, "warning", self.warning.update, rec["states"], rec["risk"], rec["frame"].t)
+        return rec
+
     @property
     def steps(self) -> list[Callable[[dict], dict]]:
-        return [self._detect, self._ego_speed, self._track, self._state, self._risk]
+        return [self._detect, self._ego_speed, self._track, self._state, self._risk, self._warn]
 
     def process(self, frame: Frame) -> FrameResult:
         """Run every stage on one frame."""
@@ -154,7 +166,7 @@ def _result(rec: dict) -> FrameResult:
     f = rec["frame"]
     return FrameResult(index=f.index, t=f.t, detections=rec["detections"], tracks=rec["tracks"],
                        states=rec["states"], risk=rec["risk"], ego_speed=rec["ego_speed"],
-                       timings_ms=rec["timings"])
+                       timings_ms=rec["timings"], warning=rec["warning"])
 
 
 # --------------------------------------------------------------------------- runners

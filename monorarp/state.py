@@ -288,6 +288,9 @@ class StateEstimator:
         contact_offset_m, ground_clearance_m: the contact-line correction (0, 0 = the paper).
         border_tol_px: a box edge this close to the image border (px) is the border's (None: never).
         max_coast_used: consecutive coasting frames after which a track is no longer output.
+        side_cut_lateral_std_mps: the lateral-velocity uncertainty (m/s) reported at least, with
+            ``ObjectState.v_x_std``, while the box is cut by a side border (the lateral reading is then
+            the near-edge model's, biased as the vehicle leaves the view).
         forget_s: a track id unseen for this long (s) loses its history.
     """
 
@@ -295,7 +298,8 @@ class StateEstimator:
                  process_std: float = 3.0, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,
                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17, max_coast_used: int = 2,
                  init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0,
-                 vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX) -> None:
+                 vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX,
+                 side_cut_lateral_std_mps: float = 2.0) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -309,6 +313,7 @@ class StateEstimator:
         self.ground_clearance_m = float(ground_clearance_m)
         self.border_tol_px = None if border_tol_px is None else float(border_tol_px)
         self.max_coast_used = int(max_coast_used)
+        self.side_cut_lateral_std_mps = float(side_cut_lateral_std_mps)
         n = 2 if motion == "cv" else 3
         self._prior_var = np.array([0.0, init_vel_std ** 2, init_acc_std ** 2][:n])
         self.forget_s = float(forget_s)
@@ -399,9 +404,14 @@ class StateEstimator:
         if self.velocity == "kalman":
             boxes = np.array([tr.box for tr in usable], dtype=float)
             cut_bottom = border_flags(self.camera, boxes, self.border_tol_px)[:, 2]
-            out = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom)
-        else:
-            out = self._difference(ids, d_y, terms, known, ok, t)
+            out, std = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom)
+            # A box cut by a side border gives its lateral position from the near-edge model (an
+            # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
+            side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
+            std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
+            return {tid: ObjectState(tid, *map(float, row), *map(float, sd))
+                    for tid, row, sd, good in zip(ids, out, std, ok) if good}
+        out = self._difference(ids, d_y, terms, known, ok, t)
         return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}
 
     def _difference(self, ids, d_y, terms, known, ok, t) -> np.ndarray:
@@ -424,6 +434,9 @@ class StateEstimator:
 
     def _kalman(self, ids, d_y, terms, coasting, known, ok, t, cut_bottom=None) -> np.ndarray:
         """Kalman filter per track and axis, vectorised over both (arrays of shape (M, 2, n)).
+
+        Returns the (M, 4) states ``(d_x, d_y, v_x, v_y)`` and their (M, 4) one-sigma
+        uncertainties from the filter's covariance (m, m/s).
 
         A box cut by the image's bottom border gives no distance, but bounds it: the vehicle's
         rear is nearer than the ground seen at the bottom row (:meth:`near_limit_m`) and not
@@ -463,4 +476,5 @@ class StateEstimator:
         for j, i in enumerate(ids):
             if ok[j]:
                 self._state[i], self._t[i] = (x[j], P[j]), t
-        return np.concatenate([x[:, :, 0], x[:, :, 1]], axis=1)
+        std = np.sqrt(np.maximum(np.concatenate([P[:, :, 0, 0], P[:, :, 1, 1]], axis=1), 0.0))
+        return np.concatenate([x[:, :, 0], x[:, :, 1]], axis=1), std

@@ -56,6 +56,12 @@ class ObjectState:
     d_y: float
     v_x: float
     v_y: float
+    # One-sigma uncertainties (m, m/s) of the same quantities where the estimator has them
+    # (the Kalman filter's covariance); None = not estimated (e.g. the paper's differencing).
+    d_x_std: float | None = None
+    d_y_std: float | None = None
+    v_x_std: float | None = None
+    v_y_std: float | None = None
 
 
 @dataclass(frozen=True)
@@ -72,6 +78,25 @@ class RiskEstimate:
     kind: str = "inverse_ttc"
 
 
+@dataclass(frozen=True)
+class WarningState:
+    """The warning stage's decision for one frame (forward-collision warning, FCW).
+
+    ``active``: a warning episode is on (the driver is alerted). While active,
+    ``track_id`` is the object it is for, ``ttc`` that object's TTC (s; None when it has
+    none this frame, e.g. during the hold time), ``episode`` the episode's index in the
+    sequence (0-based) and ``onset_t`` its start (s, frame time). ``threat_ids``: tracks
+    that pass the in-path and TTC tests this frame (before hysteresis), nearest TTC first.
+    """
+
+    active: bool = False
+    track_id: int | None = None
+    ttc: float | None = None
+    episode: int | None = None
+    onset_t: float | None = None
+    threat_ids: tuple[int, ...] = ()
+
+
 @dataclass
 class FrameResult:
     """Everything the pipeline produced for one frame, plus per-stage time (ms)."""
@@ -84,3 +109,4 @@ class FrameResult:
     risk: RiskEstimate
     ego_speed: float | None = None
     timings_ms: dict[str, float] = field(default_factory=dict)
+    warning: WarningState = field(default_factory=WarningState)

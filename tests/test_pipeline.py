@@ -65,7 +65,7 @@ def test_threaded_equals_sync():
 def test_timings_recorded():
     for runner in (run_sync, run_threaded):
         for r in runner(make(), frames(5)):
-            assert set(r.timings_ms) == {"detector", "ego_speed", "tracker", "state", "risk", "total"}
+            assert set(r.timings_ms) == {"detector", "ego_speed", "tracker", "state", "risk", "warning", "total"}
             assert all(v >= 0 for v in r.timings_ms.values())
             assert r.timings_ms["total"] >= r.timings_ms["tracker"]
 

@@ -57,11 +57,12 @@ from harness.scoring import algo
 from harness.scoring.match import MIN_IOU, as_boxes, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import ObjectRecord, _cell
+from harness.scoring.warnings import warning_metrics
 from monorarp.camera import CameraModel
 from monorarp.types import FrameResult, RiskEstimate
 
 NAN = float("nan")
-STAGES = ("detector", "ego_speed", "tracker", "state", "risk", "total")
+STAGES = ("detector", "ego_speed", "tracker", "state", "risk", "warning", "total")
 
 
 @dataclass(frozen=True)
@@ -226,12 +227,15 @@ def runtime_metrics(results: Sequence[FrameResult], wall_time_s: float | None) -
 def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig = EvalConfig(),
              wall_time_s: float | None = None, run_info: Mapping | None = None,
              camera: CameraModel | None = None, baseline_risk: Sequence[RiskEstimate] | None = None,
-             ego_speed_method: str | None = None) -> tuple[dict, list[ObjectRecord]]:
+             ego_speed_method: str | None = None, fcw_threshold_s: float | None = None
+             ) -> tuple[dict, list[ObjectRecord]]:
     """Score a run. ``truths[i]`` and ``results[i]`` must describe the same frame.
 
     ``camera`` (the one that rendered the frames) enables the range filter on predictions.
     ``baseline_risk``: the 1/TTC estimator's output on the same frames (``risk.baseline_ttc``).
     ``ego_speed_method``: name of the ego-speed stage (None: the run has none).
+    ``fcw_threshold_s``: the warning stage's TTC threshold, which defines a truth conflict
+    for ``warning.*`` (:mod:`harness.scoring.warnings`); None: ``cfg.warning_threshold_s``.
 
     Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`jsonable`.
     """
@@ -252,6 +256,7 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
         "detection": detection,
         "lane_speed": lane_speed_metrics(truths, results, ego_speed_method),
         "risk": risk_metrics(truths, results, cfg, baseline_risk),
+        "warning": warning_metrics(truths, results, fcw_threshold_s or cfg.warning_threshold_s, cfg.min_iou),
         "runtime_ms": runtime,
         "fps": fps,
         "wall_time_s": NAN if wall_time_s is None else float(wall_time_s),
@@ -337,12 +342,14 @@ def risk_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg:
 
 
 FRAME_COLUMNS = ("frame", "t", "ego_speed_est", "ego_speed_gt", "risk", "risk_kind", "risk_probability",
-                 "baseline_ttc_risk", "risk_event", "risk_label")
+                 "baseline_ttc_risk", "risk_event", "risk_label", "warning_active", "warning_track",
+                 "warning_ttc", "ego_crashed", "true_min_ttc")
 
 
 def frame_rows(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig,
                baseline: Sequence[RiskEstimate] | None = None) -> list[dict]:
-    """One row per frame (``per_frame.csv``): ego speed estimate/truth (m/s), risk, its label (nan = excluded)."""
+    """One row per frame (``per_frame.csv``): ego speed estimate/truth (m/s), risk, its label (nan = excluded),
+    the warning decision (active, track, its TTC) and the truth's crash flag and lowest TTC (s)."""
     events, labels = risk_labels(truths, cfg)
     prob = risk_probability([r.risk for r in results], cfg.near_miss_ttc_s)
     rows = []
@@ -352,7 +359,11 @@ def frame_rows(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: E
                      "ego_speed_gt": float(tr["ego"]["speed"]), "risk": float(res.risk.risk),
                      "risk_kind": res.risk.kind, "risk_probability": float(prob[k]),
                      "baseline_ttc_risk": NAN if baseline is None else float(baseline[k].risk),
-                     "risk_event": bool(events[k]), "risk_label": labels[k]})
+                     "risk_event": bool(events[k]), "risk_label": labels[k],
+                     "warning_active": bool(res.warning.active), "warning_track": res.warning.track_id,
+                     "warning_ttc": _f(res.warning.ttc), "ego_crashed": bool(tr["ego"].get("crashed", False)),
+                     "true_min_ttc": min((o["ttc"] for o in tr["objects"] if o.get("ttc") is not None),
+                                         default=NAN)})
     return rows
 
 

@@ -95,7 +95,7 @@ class Simulation:
                 e = cut_ins[p.name]
                 distance = cut_in_distance(e.gap_m, e.at_s, p.speed_mps, s.ego.speed_mps)
             x = placed_centre_x(EGO_START_X_M, s.camera.forward_offset_m, distance, p.length_m)
-            y = lane_centre_y(s.ego.lane + p.lane, s.road.lane_width_m)
+            y = lane_centre_y(s.ego.lane + p.lane, s.road.lane_width_m) + p.lateral_offset_m
             where = f"scenario {s.name!r}: vehicles.{i - 1} ({p.name!r})"
             if x - p.length_m / 2 < ROAD_START_MARGIN_M:
                 raise ScenarioError(f"{where}: starts {x - p.length_m / 2:.1f} m from the road start; "
@@ -116,6 +116,7 @@ class Simulation:
                 out.append(ScenarioVehicle(position=pos, speed=p.speed_mps, vid=i, name=p.name,
                                            behaviour=p.behaviour, lane_changes=p.lane_changes,
                                            length=p.length_m, width=p.width_m, **self._vehicle_kwargs()))
+                out[-1].lateral_offset_m = p.lateral_offset_m
         return out, footprints
 
     def _make_traffic(self, rng: np.random.Generator, occupied: list[Footprint]) -> list[ScenarioVehicle]:
@@ -133,14 +134,25 @@ class Simulation:
 
 
 def simulate(scenario: sc.Scenario, n_frames: int | None = None) -> Iterator[WorldState]:
-    """Frames ``0 .. n-1`` of the scenario (``n`` defaults to ``scenario.n_frames``); frame k has t = k / fps."""
+    """Frames ``0 .. n-1`` of the scenario (``n`` defaults to ``scenario.n_frames``); frame k has t = k / fps.
+
+    With ``scenario.end_on_contact_s`` set, the frames stop that long after the first frame
+    in which the ego's crash flag is set (a collision test ends at contact).
+    """
     n = scenario.n_frames if n_frames is None else int(n_frames)
     if n <= 0:
         return
     sim = Simulation(scenario)
-    yield sim.state()
+    state = sim.state()
+    yield state
+    contact_frame = None
     for _ in range(n - 1):
-        yield sim.step()
+        if contact_frame is None and scenario.end_on_contact_s is not None and state.ego.crashed:
+            contact_frame = state.frame
+        if contact_frame is not None and (state.frame - contact_frame) / sim.fps >= scenario.end_on_contact_s - 1e-9:
+            return
+        state = sim.step()
+        yield state
 
 
 def vehicle_state(v: ScenarioVehicle | StationaryVehicle) -> VehicleState:

@@ -134,6 +134,20 @@ class ScenarioVehicle(IDMVehicle):
         self.enable_lane_change = self.lane_changes and behaviour == "idm"
         self.manoeuvre_lane: LaneIndex | None = None   # target of a scripted lane change in progress
         self.events: list[TimedEvent] = []
+        self.lateral_offset_m = 0.0                    # steered offset from the lane centre (m, + right)
+
+    def steering_control(self, target_lane_index: LaneIndex) -> float:
+        """highway-env's lane-keeping steering, aiming ``lateral_offset_m`` right of the centre line
+        of its current lane (straight roads along +x; road y grows to the right) until a scripted
+        lane change starts."""
+        if not self.lateral_offset_m or self.manoeuvre_lane is not None:
+            return super().steering_control(target_lane_index)
+        saved = self.position
+        self.position = saved - np.array([0.0, self.lateral_offset_m])
+        try:
+            return super().steering_control(target_lane_index)
+        finally:
+            self.position = saved
 
     # ---------------------------------------------------------------- control
     def act(self, action: dict | str | None = None) -> None:

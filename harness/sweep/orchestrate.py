@@ -25,7 +25,7 @@ from harness.sweep.worker import METRICS_JSON, RUN_JSON, RunOutcome
 
 RUNS = "runs"
 REPORT_HTML = "report.html"
-OUR_NAMES = {RUNS, "summary.json", "summary.csv", REPORT_HTML}
+OUR_NAMES = {RUNS, "summary.json", "summary.csv", REPORT_HTML, "scorecard.json"}   # sweeps and scorecards
 
 
 @dataclass

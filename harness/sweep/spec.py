@@ -183,6 +183,8 @@ class Variant(_Model):
     risk_kwargs: dict[str, Any] = {}
     ego_speed: str | None = None
     ego_speed_kwargs: dict[str, Any] = {}
+    warning: str | None = "fcw"
+    warning_kwargs: dict[str, Any] = {}
 
     @model_validator(mode="after")
     def _velocity(self) -> "Variant":
@@ -206,6 +208,7 @@ class Variant(_Model):
                "ego_speed": None}
         if self.ego_speed is not None:
             cfg["ego_speed"] = {"name": self.ego_speed, "kwargs": dict(self.ego_speed_kwargs)}
+        cfg["warning"] = None if self.warning is None else {"name": self.warning, "kwargs": dict(self.warning_kwargs)}
         return cfg
 
 

@@ -181,9 +181,12 @@ def prediction_record(result: FrameResult, given_speed: float | None = None) -> 
         speed, source = float(given_speed), "given"
     else:
         speed, source = None, None
+    w = result.warning
     return {"frame": int(result.index), "t": float(result.t), "tracks": tracks,
             "risk": _num(result.risk.risk), "risk_kind": getattr(result.risk, "kind", "inverse_ttc"),
-            "ego_speed": speed, "ego_speed_source": source}
+            "ego_speed": speed, "ego_speed_source": source,
+            "warning": {"active": bool(w.active), "track_id": w.track_id, "ttc": _num(w.ttc),
+                        "episode": w.episode, "onset_t": _num(w.onset_t)}}
 
 
 # ------------------------------------------------------------------------------ run

@@ -1,0 +1,67 @@
+"""``monorarp scorecard``: the collision-warning test protocols, scored as regulators and buyers judge them.
+
+Exit status: 0 every test passed and no run failed, 1 a test failed or a run failed
+(the scorecard is still written), 2 bad input (a protocol file or option) — nothing written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from monorarp.errors import UserError
+
+SUITE_CHOICES = ("nhtsa", "ncap", "cut_in", "nominal", "risk", "all")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "scorecard", help="run the FCW test protocols (NHTSA, Euro NCAP, cut-ins), false alarms, risk family",
+        description="Run the collision-warning protocols of scenarios/fcw/ (or --protocol files), score the "
+                    "first warning's true TTC per trial, false alarms per hour of nominal traffic and the risk "
+                    "estimators over a scenario family; write DIR/scorecard.json and DIR/report.html and print "
+                    "the scorecard. Exits 1 when a test or run failed, 2 on bad input.")
+    p.add_argument("--suite", action="append", choices=SUITE_CHOICES, default=None,
+                   help="suite(s) to run (repeatable; default all)")
+    p.add_argument("--protocol", action="append", type=Path, default=None, metavar="FILE.yaml",
+                   help="protocol file(s) to run instead of the shipped suites")
+    p.add_argument("--detector", default="centernet", metavar="NAME|PATH.onnx|oracle",
+                   help="detector (default centernet, the shipped model; oracle = ground-truth boxes)")
+    p.add_argument("--tracker", default="particle", metavar="NAME", help="tracker (default particle)")
+    p.add_argument("--warning-threshold", type=float, default=None, metavar="S",
+                   help="TTC threshold of the warning stage, s (default: the stage's own, 3.0)")
+    p.add_argument("--trials", type=int, default=None, metavar="N", help="trials per test (default: the protocol's)")
+    p.add_argument("--frames", type=int, default=None, metavar="N", help="cap on frames per run (default none)")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
+    p.add_argument("--executor", choices=("local", "ray"), default="local")
+    p.add_argument("--workers", type=int, default=1, metavar="N", help="parallel runs (default 1)")
+    p.add_argument("--address", default=None, metavar="auto|HOST:PORT", help="Ray cluster (with --executor ray)")
+    p.add_argument("--resume", action="store_true", help="skip runs already finished in DIR")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from harness.scorecard.report import console_table
+    from harness.scorecard.run import SUITES, ScorecardOptions, run_scorecard
+
+    if args.workers < 1:
+        raise UserError(f"--workers: must be a positive integer, got {args.workers}")
+    if args.warning_threshold is not None and not 0 < args.warning_threshold <= 10:
+        raise UserError(f"--warning-threshold: must be in (0, 10] s, got {args.warning_threshold}")
+    if args.protocol and args.suite:
+        raise UserError("--protocol and --suite: give one or the other")
+    suites = SUITES if not args.suite or "all" in args.suite else tuple(dict.fromkeys(args.suite))
+    detector = str(Path(args.detector).expanduser()) if args.detector.lower().endswith(".onnx") else args.detector
+    opts = ScorecardOptions(suites=suites, protocol_files=tuple(args.protocol or ()), detector=detector,
+                            tracker=args.tracker, trials=args.trials, frames=args.frames,
+                            warning_kwargs={} if args.warning_threshold is None else
+                            {"ttc_threshold_s": args.warning_threshold},
+                            executor=args.executor, workers=args.workers, address=args.address,
+                            resume=args.resume, progress=not args.no_progress)
+    card = run_scorecard(args.out, opts)
+    print(console_table(card))
+    print(f"wrote {args.out}/scorecard.json, report.html")
+    failed = card["failed_runs"] or not all(t["passed"] for t in card["tests"])
+    return 1 if failed else 0

@@ -1,0 +1,264 @@
+"""``monorarp scorecard``: run the collision-warning protocols, score them, write ``scorecard.json``.
+
+Layout of ``DIR`` (as a sweep's: each run directory appears complete or not at all,
+``--resume`` skips runs already done with the same parameters)::
+
+    DIR/runs/<suite>__<test>__<parameters>__t<trial>/   one run (harness.sweep.worker)
+    DIR/scorecard.json                                  tests, false_alarms, risk, config
+    DIR/summary.json, summary.csv                       per run, as a sweep's (for ``monorarp check``)
+    DIR/report.html                                     the scorecard section (harness.scorecard.report)
+
+Every protocol, option and pipeline is checked before anything is written: a
+problem raises :class:`~monorarp.errors.UserError` (one line, exit 2).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from harness.scenario import ScenarioError, parse_scenario
+from harness.scorecard import score
+from harness.scorecard.protocols import ProtocolError, Trial, expand_protocol, load_protocol
+from harness.sweep.executors import Executor, make_executor
+from harness.sweep.expand import RunTask, _inject_seeds, sanitize
+from harness.sweep.orchestrate import finished, prepare_out_dir
+from harness.sweep.spec import Variant
+from harness.sweep.worker import METRICS_JSON, RUN_JSON
+
+PROTOCOL_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "fcw"
+SUITES = ("nhtsa", "ncap", "cut_in", "nominal", "risk")
+SCORECARD_JSON = "scorecard.json"
+REPORT_HTML = "report.html"
+
+
+@dataclass
+class ScorecardOptions:
+    suites: Sequence[str] = SUITES
+    protocol_dir: Path = PROTOCOL_DIR
+    protocol_files: Sequence[Path] = ()          # explicit files instead of <protocol_dir>/<suite>.yaml
+    detector: str = "centernet"
+    tracker: str = "particle"
+    warning_kwargs: dict = field(default_factory=dict)
+    trials: int | None = None
+    frames: int | None = None
+    executor: str = "local"
+    workers: int = 1
+    address: str | None = None
+    resume: bool = False
+    progress: bool = True
+
+
+def protocol_paths(opts: ScorecardOptions) -> list[Path]:
+    if opts.protocol_files:
+        return [Path(p) for p in opts.protocol_files]
+    return [Path(opts.protocol_dir) / f"{s}.yaml" for s in opts.suites]
+
+
+def variant_for(trial: Trial, opts: ScorecardOptions) -> Variant:
+    """The pipeline of a trial: the chosen detector and tracker, the warning stage; in the risk suite the
+    Monte Carlo risk (its ego model = constant speed when the scenario's ego is known to hold its speed,
+    the ego speed from the lane-marking estimator) with the 1/TTC risk scored on the same states."""
+    kw = dict(detector=opts.detector, tracker=opts.tracker, warning_kwargs=dict(opts.warning_kwargs))
+    if trial.suite == "risk":
+        ego = trial.scenario.get("ego", {})
+        constant = ego.get("behaviour") == "constant_speed" and not any(
+            e.get("vehicle") == "ego" for e in trial.scenario.get("events", []))
+        kw.update(risk="monte_carlo", ego_speed="ground_track",
+                  risk_kwargs={"ego_model": "constant_speed" if constant else "idm", "n_rollouts": 200})
+    return Variant(name="scorecard", **kw)
+
+
+def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
+    """Every trial of the chosen suites and its run task; raises UserError for any bad input."""
+    from harness.run import build_pipeline
+    from monorarp.errors import UserError
+
+    if opts.trials is not None and opts.trials < 1:
+        raise ProtocolError(f"--trials: must be >= 1, got {opts.trials}")
+    if opts.frames is not None and opts.frames < 1:
+        raise ProtocolError(f"--frames: must be >= 1, got {opts.frames}")
+    trials: list[Trial] = []
+    for path in protocol_paths(opts):
+        if not path.is_file():
+            raise ProtocolError(f"{path}: no such protocol file")
+        trials += expand_protocol(load_protocol(path), path, opts.trials)
+    tasks, built = [], {}
+    for trial in trials:
+        try:
+            scenario = parse_scenario(trial.scenario, trial.scenario_file).model_dump(mode="json")
+        except ScenarioError as e:
+            raise ProtocolError(f"{trial.scenario_file}: test {trial.test}: {e}") from None
+        variant = variant_for(trial, opts)
+        pipe = variant.pipeline_config(Path.cwd())
+        key = json.dumps(pipe, sort_keys=True)
+        if key not in built:      # each distinct pipeline is built once before anything runs
+            try:
+                build_pipeline(pipe, parse_scenario(scenario).camera.model())
+            except UserError as e:
+                raise ProtocolError(f"scorecard pipeline: {e}") from None
+            except (TypeError, ValueError) as e:
+                raise ProtocolError(f"scorecard pipeline: {type(e).__name__}: {e}") from None
+            built[key] = pipe
+        rid = sanitize(f"{trial.key}__t{trial.trial}" if trial.kind != "nominal" else f"{trial.key}__seed{trial.trial}")
+        tasks.append(RunTask(id=f"{trial.suite}__{rid}", index=len(tasks), scenario_file=trial.scenario_file,
+                             scenario_key=trial.suite, seed=int(scenario["seed"]), grid=dict(trial.params),
+                             variant=variant.name, scenario=scenario,
+                             pipeline=_inject_seeds(built[key], int(scenario["seed"])), frames=opts.frames,
+                             warning_threshold_s=2.0))
+    ids = [t.id for t in tasks]
+    if len(set(ids)) != len(ids):
+        dup = sorted({i for i in ids if ids.count(i) > 1})[0]
+        raise ProtocolError(f"two trials get the same run id {dup!r}")
+    return trials, tasks
+
+
+def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., Executor] = make_executor) -> dict:
+    """Run every trial not already finished, then score and write ``scorecard.json`` and ``report.html``."""
+    from harness.sweep.orchestrate import _progress
+    from harness.output import write_json_atomic
+    from harness.sweep.summary import write_text_atomic
+    from harness.scorecard.report import render_scorecard
+
+    out = Path(out)
+    trials, tasks = build_tasks(opts)
+    ex = make(opts.executor, opts.workers, opts.address)
+    getattr(ex, "start", lambda: None)()
+    try:
+        runs_dir = prepare_out_dir(out, opts.resume)
+        todo = [t for t in tasks if not (opts.resume and finished(t, runs_dir))]
+        bar = _progress(len(todo), opts.progress)
+        try:
+            for _ in ex.run(todo, runs_dir):
+                bar.update(1)
+        finally:
+            bar.close()
+    finally:
+        getattr(ex, "close", lambda: None)()
+    from harness.sweep.summary import collect_rows, write_summary
+
+    rows = collect_rows(tasks, runs_dir)     # summary.json: what `monorarp check` regression-checks
+    write_summary(out, rows, name="scorecard", spec_path=", ".join(map(str, protocol_paths(opts))), grid_keys=[],
+                  headline=["warning.first_warning_ttc_s", "warning.episodes", "warning.false_alarms"])
+    card, risk_runs = scorecard(trials, tasks, runs_dir, opts)
+    write_json_atomic(out / SCORECARD_JSON, card, indent=2)
+    write_text_atomic(out / REPORT_HTML, render_scorecard(card, score.roc_curves(risk_runs, 2.0)))
+    return card
+
+
+# ----------------------------------------------------------------------------- scoring
+def _read_json(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _frame_arrays(run_dir: Path) -> dict[str, np.ndarray] | None:
+    """``per_frame.csv`` -> t, event, and the risk scores (1/TTC; Monte Carlo where the run has it)."""
+    try:
+        with open(run_dir / "per_frame.csv", newline="") as f:
+            rows = list(csv.DictReader(f))
+    except OSError:
+        return None
+
+    def col(name: str) -> np.ndarray:
+        return np.array([float(r[name]) if r[name] not in ("", None) else np.nan for r in rows], dtype=float)
+
+    out = {"t": col("t"), "event": col("risk_event") == 1}
+    mc = bool(rows) and rows[0]["risk_kind"] == "probability"
+    if mc:
+        out["monte_carlo"], out["inverse_ttc"] = col("risk"), col("baseline_ttc_risk")
+    else:
+        out["inverse_ttc"] = col("risk")
+    return out
+
+
+def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path, opts: ScorecardOptions
+              ) -> tuple[dict, list[dict]]:
+    """The ``scorecard.json`` mapping from the runs on disk (see :mod:`harness.scorecard.score`), and the
+    risk family's per-frame arrays (for the ROC plot)."""
+    groups: dict[tuple[str, str], list[tuple[Trial, RunTask, dict | None, str | None]]] = {}
+    failed = []
+    fa_episodes, exposure_s, exposure_km, risk_runs = [], 0.0, 0.0, []
+    for trial, task in zip(trials, tasks):
+        run = _read_json(runs_dir / task.id / RUN_JSON) or {}
+        metrics = _read_json(runs_dir / task.id / METRICS_JSON) if run.get("status") == "ok" else None
+        if metrics is None:
+            failed.append({"id": task.id, "error": run.get("error") or "no result"})
+        groups.setdefault((trial.suite, trial.key), []).append((trial, task, metrics, run.get("error")))
+        if metrics is None:
+            continue
+        w = metrics["warning"]
+        if trial.kind == "nominal":
+            exposure_s += w["exposure_s"]
+            exposure_km += w["exposure_km"]
+            fa_episodes += [{"run": task.id, "t_s": e["onset_t"], "end_t_s": e["end_t"], "track_id": e["track_id"],
+                             "gt_id": e["gt_id"], "why": e["why"]} for e in w["episode_list"] if e["false_alarm"]]
+        if trial.suite == "risk":
+            arrays = _frame_arrays(runs_dir / task.id)
+            if arrays is not None:
+                risk_runs.append(arrays)
+    tests = []
+    for (suite, key), members in groups.items():
+        first = members[0][0]
+        if first.kind == "nominal":
+            continue
+        ttcs = [None if m is None else m["warning"]["first_warning_ttc_s"] for _, _, m, _ in members]
+        leads = [None if m is None else m["warning"]["lead_time_s"] for _, _, m, _ in members]
+        verdicts = [m is not None and score.trial_passed(first.kind, m["warning"], first.required_ttc_s)
+                    for _, _, m, _ in members]
+        episodes = [None if m is None else m["warning"]["episodes"] for _, _, m, _ in members]
+        tests.append({"suite": suite, "test": first.test, "kind": first.kind, "key": key,
+                      "ego_speed_mps": first.ego_speed_mps, "target_speed_mps": first.target_speed_mps,
+                      "params": {k: v for k, v in first.params.items() if k not in ("target_model_m", "start_gap_m",
+                                                                                       "side")},
+                      "trials": len(members), "trials_passed": int(sum(verdicts)),
+                      "min_trials_passed": first.min_trials_passed, "required_ttc_s": first.required_ttc_s,
+                      "ttc_at_first_warning_s": ttcs, "lead_time_s": leads, "episodes": episodes,
+                      "runs": [t.id for _, t, _, _ in members],
+                      "passed": int(sum(verdicts)) >= first.min_trials_passed})
+    hours = exposure_s / 3600.0
+    card = {
+        "version": 1,
+        "config": {"detector": opts.detector, "tracker": opts.tracker, "warning_kwargs": opts.warning_kwargs,
+                   "suites": sorted({t.suite for t in trials}), "trials_override": opts.trials,
+                   "frames_cap": opts.frames},
+        "tests": tests,
+        "summary": summary(tests),
+        "false_alarms": {"episodes": len(fa_episodes), "hours": hours, "km": exposure_km,
+                         "per_hour": len(fa_episodes) / hours if hours > 0 else None,
+                         "per_100km": 100 * len(fa_episodes) / exposure_km if exposure_km > 0 else None,
+                         "runs": sum(t.kind == "nominal" for t in trials), "list": fa_episodes},
+        "risk": score.pooled_risk(risk_runs) if risk_runs else None,
+        "failed_runs": failed,
+    }
+    from harness.output import to_jsonable
+    return to_jsonable(card), risk_runs
+
+
+def summary(tests: Sequence[dict]) -> dict:
+    """Headline figures: NHTSA tests passed; share of Euro NCAP runs above 30 km/h warned at TTC >= 2.0 s."""
+    out: dict = {}
+    nhtsa = [t for t in tests if t["suite"] == "nhtsa"]
+    if nhtsa:
+        out["nhtsa_passed"] = f"{sum(t['passed'] for t in nhtsa)}/{len(nhtsa)}"
+        out["nhtsa_trials_passed"] = f"{sum(t['trials_passed'] for t in nhtsa)}/{sum(t['trials'] for t in nhtsa)}"
+    ncap = [v for t in tests if t["suite"] == "ncap" and t["ego_speed_mps"] * 3.6 > 30 + 1e-6
+            for v in t["ttc_at_first_warning_s"]]
+    if ncap:
+        ok = sum(v is not None and v >= 2.0 for v in ncap)
+        out["ncap_above_30kmh_ttc_ge_2s"] = ok / len(ncap)
+        out["ncap_above_30kmh_runs"] = len(ncap)
+    by_suite: dict = {}
+    for t in tests:
+        s = by_suite.setdefault(t["suite"], [0, 0])
+        s[0] += t["passed"]
+        s[1] += 1
+    out["tests_passed"] = {k: f"{a}/{b}" for k, (a, b) in by_suite.items()}
+    return out

@@ -1,0 +1,134 @@
+"""Scorecard: protocol validation and expansion, warning-episode scoring, pooled risk metrics, CLI."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from sklearn.metrics import average_precision_score, roc_auc_score
+
+from harness.scorecard import score
+from harness.scorecard.protocols import KMH, ProtocolError, contact_time, expand_protocol, load_protocol
+from harness.scoring import algo
+from harness.scoring.warnings import warning_metrics
+from monorarp.types import FrameResult, ObjectState, RiskEstimate, Track, WarningState
+
+FCW = Path(__file__).resolve().parents[1] / "scenarios" / "fcw"
+
+
+def test_shipped_protocols_expand_to_the_standard_grids():
+    ncap = expand_protocol(load_protocol(FCW / "ncap.yaml"), FCW / "ncap.yaml")
+    by = {t: sum(x.test == t for x in ncap) for t in ("CCRs", "CCRm", "CCRb")}
+    assert by == {"CCRs": 8 * 3, "CCRm": 6 * 3, "CCRb": 2 * 2 * 3}
+    nhtsa = expand_protocol(load_protocol(FCW / "nhtsa.yaml"), FCW / "nhtsa.yaml")
+    assert len(nhtsa) == 21 and all(t.min_trials_passed == 5 and t.trials == 7 for t in nhtsa)
+    lvs = [t for t in nhtsa if t.test == "LVS"]
+    assert all(t.ego_speed_mps == pytest.approx(20.1) for t in lvs)
+    assert len({t.scenario["vehicles"][0]["distance_m"] for t in lvs}) == 7      # start distance varies by trial
+    # trials are deterministic
+    again = expand_protocol(load_protocol(FCW / "nhtsa.yaml"), FCW / "nhtsa.yaml")
+    assert [t.scenario for t in again] == [t.scenario for t in nhtsa]
+    # the offset target sits half its width off the lane centre
+    off = [t for t in ncap if t.test == "CCRs" and t.params["offset"] == 0.5][0]
+    v = off.scenario["vehicles"][0]
+    assert v["lateral_offset_m"] == pytest.approx(0.5 * v["width_m"])
+
+
+def test_contact_time_closed_forms():
+    assert contact_time(100.0, 20.0, 0.0, 0.0, 0.0) == pytest.approx(5.0, abs=0.011)
+    assert contact_time(30.0, 20.0, 10.0, 0.0, 0.0) == pytest.approx(3.0, abs=0.011)
+    # equal speeds, the lead brakes at 2 s with 5 m/s^2: the gap closes as 2.5 tau^2 = 30 -> 2 + sqrt(12) s
+    assert contact_time(30.0, 20.0, 20.0, 5.0, 2.0) == pytest.approx(2 + 12 ** 0.5, abs=0.02)
+    assert contact_time(30.0, 10.0, 20.0, 0.0, 0.0) is None
+
+
+@pytest.mark.parametrize("test, field", [
+    ({"test": "X", "kind": "rear_end", "target_motion": "braking", "ego_speed_kmh": [50], "target_speed_kmh": 50,
+      "gap_m": [-5.0], "target_decel_mps2": [2.0], "required_ttc_s": 2.0}, "gap_m"),
+    ({"test": "X", "kind": "rear_end", "target_motion": "moving", "ego_speed_kmh": [50], "target_speed_kmh": 0,
+      "required_ttc_s": 2.0}, "target_speed_kmh"),
+    ({"test": "X", "kind": "rear_end", "target_motion": "moving", "ego_speed_kmh": [20], "target_speed_kmh": 30,
+      "required_ttc_s": 2.0}, "ego_speed_kmh"),
+    ({"test": "X", "kind": "rear_end", "target_motion": "stationary", "ego_speed_kmh": [0], "required_ttc_s": 2.0},
+     "ego_speed_kmh"),
+    ({"test": "X", "kind": "rear_end", "target_motion": "stationary", "ego_speed_kmh": [50]}, "required_ttc_s"),
+    ({"test": "X", "kind": "rear_end", "speed": 3}, "speed"),
+])
+def test_impossible_protocols_name_the_field(tmp_path, test, field):
+    p = tmp_path / "bad.yaml"
+    p.write_text(json.dumps({"suite": "bad", "tests": [test]}))
+    with pytest.raises(ProtocolError) as e:
+        load_protocol(p)
+    msg = str(e.value)
+    assert "bad.yaml" in msg and field in msg and "\n" not in msg
+
+
+def test_cli_bad_protocol_exits_2_and_writes_nothing(tmp_path):
+    p = tmp_path / "bad.yaml"
+    p.write_text("suite: bad\ntests:\n  - {test: X, kind: rear_end, target_motion: braking, ego_speed_kmh: [50],\n"
+                 "     target_speed_kmh: 50, gap_m: [0], target_decel_mps2: [2], required_ttc_s: 2}\n")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "monorarp", "scorecard", "--protocol", str(p), "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and "gap_m" in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()
+    r = subprocess.run([sys.executable, "-m", "monorarp", "scorecard", "--suite", "nhtsa", "--trials", "0",
+                        "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 2 and "--trials" in r.stderr and not out.exists()
+
+
+def test_average_precision_and_auroc_match_scikit_learn():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        y = rng.random(300) < 0.2
+        s = np.round(rng.normal(y * 1.0, 1.0), 1)          # rounded: many ties
+        assert score.average_precision(s, y) == pytest.approx(average_precision_score(y, s), abs=1e-12)
+        assert algo.auroc(s, y) == pytest.approx(roc_auc_score(y, s), abs=1e-12)
+
+
+def test_pooled_risk_labels_by_horizon():
+    t = np.arange(40) / 10.0                                 # 10 fps, event (contact) from frame 30 on
+    event = t >= 3.0
+    perfect = np.where(t >= 2.0, t, 0.0)                      # rises 1 s before the event: perfect at h = 1 s
+    runs = [{"t": t, "event": event, "inverse_ttc": perfect}]
+    out = score.pooled_risk(runs, (1.0, 1.5))
+    assert out["1s"]["inverse_ttc"]["auroc"] == 1.0 and out["1s"]["inverse_ttc"]["ap"] == pytest.approx(1.0)
+    assert out["1s"]["inverse_ttc"]["positives"] == 20        # frames 20..39
+    assert out["1.5s"]["inverse_ttc"]["positives"] == 25
+    assert out["1.5s"]["inverse_ttc"]["auroc"] < 1.0          # frames 15..19 positive at 1.5 s but scored 0
+
+
+def _frame(k, ttc_gt=None, active=False, episode=None, crashed=False, d_lat=0.0):
+    truth = {"frame": k, "t": k / 10, "ego": {"speed": 20.0, "crashed": crashed},
+             "objects": [{"id": 5, "box": [100, 100, 140, 130], "ttc": ttc_gt, "d_lat": d_lat, "d_long": 20.0,
+                          "v_lat": 0.0, "v_long": -5.0, "lane_rel": 0}]}
+    res = FrameResult(index=k, t=k / 10, detections=[], tracks=[Track(2, (100, 100, 140, 130))],
+                      states={2: ObjectState(2, d_lat, 20.0, 0.0, -5.0)}, risk=RiskEstimate(0.0),
+                      warning=WarningState(active=active, track_id=2 if active else None, ttc=1.5 if active else None,
+                                           episode=episode))
+    return truth, res
+
+
+def test_warning_metrics_episodes_false_alarms_and_timing():
+    frames = ([_frame(k) for k in range(5)] +                                        # no conflict
+              [_frame(k, active=True, episode=0, d_lat=3.5) for k in range(5, 8)] +    # warning, no conflict: FA
+              [_frame(k) for k in range(8, 10)] +
+              [_frame(k, ttc_gt=3.5 - 0.1 * (k - 10), active=k >= 12, episode=1) for k in range(10, 30)] +
+              [_frame(30, ttc_gt=0.0, active=True, episode=1, crashed=True)])
+    truths, results = zip(*frames)
+    m = warning_metrics(truths, results, threshold_s=2.7)
+    assert m["episodes"] == 2 and m["false_alarms"] == 1
+    fa, real = m["episode_list"]
+    assert fa["false_alarm"] and "vehicle 5" in fa["why"] and not real["false_alarm"]
+    assert m["first_warning_ttc_s"] is None and m["first_warning_false_alarm"] is True
+    assert real["true_ttc_at_onset_s"] == pytest.approx(3.3)
+    assert m["contact_t_s"] == pytest.approx(3.0) and m["lead_time_s"] == pytest.approx(3.0 - 0.5)
+    assert m["exposure_s"] == pytest.approx(3.1) and m["exposure_km"] == pytest.approx(20 * 3.1 / 1000)
+    # the first real warning alone
+    m2 = warning_metrics(truths[10:], results[10:], threshold_s=2.7)
+    assert m2["false_alarms"] == 0 and m2["first_warning_ttc_s"] == pytest.approx(3.3)
+    assert score.trial_passed("rear_end", m2, 2.4) and not score.trial_passed("rear_end", m2, 3.5)
+    assert not score.trial_passed("rear_end", m, 2.4) and not score.trial_passed("pass_by", m, None)

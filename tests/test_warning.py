@@ -1,0 +1,72 @@
+"""The forward-collision warning stage (monorarp.warning): in-path test, TTC, episodes."""
+
+import math
+
+import pytest
+
+from monorarp.types import ObjectState
+from monorarp.warning import ForwardCollisionWarning, significant_lateral_velocity
+
+
+def fcw(**kw):
+    kw.setdefault("camera_forward_offset_m", 0.5)
+    return ForwardCollisionWarning(**kw)
+
+
+def test_stopped_lead_ttc_is_the_closed_form():
+    # Rear face 30 m ahead of the camera, closing at 20 m/s; the ego's front is 4.5/2 - 0.5 = 1.75 m ahead.
+    w = fcw(ttc_threshold_s=3.0)
+    threats = w.threats({7: ObjectState(7, 0.3, 30.0, 0.0, -20.0, v_x_std=0.1)})
+    assert threats[7] == pytest.approx((30.0 - 1.75) / 20.0)
+    assert fcw(ttc_threshold_s=1.0).threats({7: ObjectState(7, 0.3, 30.0, 0.0, -20.0)}) == {}
+
+
+def test_lateral_velocity_counts_only_beyond_its_uncertainty():
+    assert significant_lateral_velocity([-3.0, 3.0, 0.5], [1.0, 0.2, 1.0], 2.0).tolist() == pytest.approx([-1.0, 2.6, 0.0])
+    # Next lane (3.7 m right), 8 m ahead, drifting left at 3 m/s and slower by 4 m/s.
+    drifting = ObjectState(1, 3.7, 8.0, -3.0, -4.0, v_x_std=2.0)       # poorly observed: not in path
+    sure = ObjectState(1, 3.7, 8.0, -3.0, -4.0, v_x_std=0.1)           # a real cut-in: in path
+    assert fcw().threats({1: drifting}) == {}
+    ttc = fcw().threats({1: sure})[1]
+    assert 0 < ttc < 2.7
+    # No uncertainty given: lateral_velocity_std_mps stands in for it.
+    assert fcw(lateral_velocity_std_mps=2.0).threats({1: ObjectState(1, 3.7, 8.0, -3.0, -4.0)}) == {}
+
+
+def test_episode_needs_min_on_then_holds():
+    w = fcw(min_on_s=0.1, hold_s=0.5)
+    threat = {3: ObjectState(3, 0.0, 10.0, 0.0, -10.0, v_x_std=0.1)}
+    dt = 1 / 15
+    seq = [threat, {}, threat, threat, threat, {}, {}, {}, threat, {}] + [{}] * 10 + [threat] * 3
+    out = [w.update(s, None, k * dt) for k, s in enumerate(seq)]
+    active = [o.active for o in out]
+    # a one-frame blip raises nothing; the alert comes on when the threat has lasted 0.1 s (3rd frame of it)
+    assert active[:4] == [False, False, False, False] and active[4]
+    # a gap shorter than hold_s keeps the same episode; then it ends, and a new one starts later
+    assert all(active[4:12]) and out[8].episode == 0
+    assert not active[16]
+    assert out[-1].active and out[-1].episode == 1 and out[-1].track_id == 3
+    assert out[4].onset_t == pytest.approx(4 * dt)
+
+
+def test_warned_object_is_the_lowest_ttc():
+    w = fcw(min_on_s=0.0)
+    s = {1: ObjectState(1, 0.0, 40.0, 0.0, -20.0, v_x_std=0.1), 2: ObjectState(2, 0.2, 20.0, 0.0, -15.0, v_x_std=0.1)}
+    out = w.update(s, None, 0.0)
+    assert out.active and out.track_id == 2 and out.threat_ids == (2, 1)
+    assert out.ttc == pytest.approx((20.0 - 1.75) / 15.0)
+
+
+@pytest.mark.parametrize("kw", [{"ttc_threshold_s": 0}, {"ttc_threshold_s": math.nan}, {"hold_s": -1},
+                                {"lateral_sigmas": -0.5}])
+def test_bad_settings_are_refused(kw):
+    with pytest.raises(ValueError):
+        fcw(**kw)
+
+
+def test_registered_and_in_the_default_pipeline():
+    from monorarp import registry
+    from monorarp.pipeline import PipelineConfig
+
+    assert "fcw" in registry.available("warning")
+    assert PipelineConfig(detector={"name": "centernet"}).warning.name == "fcw"
