@@ -21,7 +21,10 @@ vehicle that really cuts in (a lateral velocity its filter is sure of) is.
 The closing speed is discounted the same way by ``longitudinal_sigmas`` of its
 uncertainty (no discount when the estimator gives none): a track just born, whose
 velocity the filter has not yet settled (wide prior), cannot raise an alert on a
-transient.
+transient. Lateral speeds are bounded by ``max_lateral_speed_mps`` (3 m/s; lane
+changes on a highway move at 0.5-2 m/s): an estimate beyond it (a box jumping as
+an occluder passes) is a measurement artefact, not a vehicle that can reach the ego
+from two lanes away within the threshold.
 
 **Episodes (hysteresis).** A threat must persist for ``min_on_s`` (frame time)
 before the alert comes on (one-frame blips raise nothing); the alert then stays
@@ -66,7 +69,7 @@ class ForwardCollisionWarning:
 
     def __init__(self, ttc_threshold_s: float = DEFAULT_TTC_THRESHOLD_S, min_on_s: float = 0.1,
                  hold_s: float = 1.0, lateral_sigmas: float = 2.0, lateral_velocity_std_mps: float = 0.5,
-                 longitudinal_sigmas: float = 1.0,
+                 longitudinal_sigmas: float = 1.0, max_lateral_speed_mps: float = 3.0,
                  corridor_margin_m: float = 0.0, other_width_m: float = 1.8, other_length_m: float = 4.5,
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None) -> None:
@@ -76,7 +79,7 @@ class ForwardCollisionWarning:
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be positive, got {v}")
         for name, v in (("min_on_s", min_on_s), ("hold_s", hold_s), ("lateral_sigmas", lateral_sigmas),
-                        ("longitudinal_sigmas", longitudinal_sigmas),
+                        ("longitudinal_sigmas", longitudinal_sigmas), ("max_lateral_speed_mps", max_lateral_speed_mps),
                         ("lateral_velocity_std_mps", lateral_velocity_std_mps)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be >= 0, got {v}")
@@ -85,6 +88,7 @@ class ForwardCollisionWarning:
         self.ttc_threshold_s, self.min_on_s, self.hold_s = float(ttc_threshold_s), float(min_on_s), float(hold_s)
         self.lateral_sigmas, self.lateral_velocity_std_mps = float(lateral_sigmas), float(lateral_velocity_std_mps)
         self.longitudinal_sigmas = float(longitudinal_sigmas)
+        self.max_lateral_speed_mps = float(max_lateral_speed_mps)
         self.other_width_m, self.other_length_m = float(other_width_m), float(other_length_m)
         (x_lo, x_hi), self.ego_y = ego_extent(ego_length_m, ego_width_m, camera_forward_offset_m,
                                               camera_lateral_offset_m)
@@ -112,6 +116,7 @@ class ForwardCollisionWarning:
         v_y = significant_lateral_velocity([o.v_y for o in s], v_y_std, self.longitudinal_sigmas)
         v_x_std = np.array([self.lateral_velocity_std_mps if o.v_x_std is None else o.v_x_std for o in s])
         v_x = significant_lateral_velocity([o.v_x for o in s], v_x_std, self.lateral_sigmas)
+        v_x = np.clip(v_x, -self.max_lateral_speed_mps, self.max_lateral_speed_mps)
         x_lo, x_hi, y_lo, y_hi = object_extents(d_x, d_y, self.other_width_m, self.other_length_m)
         ttc = time_to_collision(x_lo, x_hi, y_lo, y_hi, v_x, v_y, self.ego_x, self.ego_y, self.ttc_threshold_s)
         return {i: float(v) for i, v in zip(ids, ttc) if np.isfinite(v) and v < self.ttc_threshold_s}

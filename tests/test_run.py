@@ -236,5 +236,6 @@ def test_lane_speed_and_risk_scored_on_a_braking_lead(tmp_path):
     rows = (tmp_path / "o" / "per_frame.csv").read_text().splitlines()
     assert rows[0].split(",")[:4] == ["frame", "t", "ego_speed_est", "ego_speed_gt"] and len(rows) == 61
     # The near miss is in the ground truth: the frames just before it are labelled positive.
-    labels = [r.split(",")[-1] for r in rows[1:]]
+    col = rows[0].split(",").index("risk_label")
+    labels = [r.split(",")[col] for r in rows[1:]]
     assert labels[-1] == "1"

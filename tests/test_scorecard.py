@@ -36,6 +36,12 @@ def test_shipped_protocols_expand_to_the_standard_grids():
     assert v["lateral_offset_m"] == pytest.approx(0.5 * v["width_m"])
 
 
+def test_risk_family_has_at_least_200_runs_mixing_conflicts():
+    fam = expand_protocol(load_protocol(FCW / "risk.yaml"), FCW / "risk.yaml")
+    assert len(fam) >= 200
+    assert 0.3 < sum(t.conflict for t in fam) / len(fam) < 0.7
+
+
 def test_contact_time_closed_forms():
     assert contact_time(100.0, 20.0, 0.0, 0.0, 0.0) == pytest.approx(5.0, abs=0.011)
     assert contact_time(30.0, 20.0, 10.0, 0.0, 0.0) == pytest.approx(3.0, abs=0.011)

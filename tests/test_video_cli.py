@@ -29,7 +29,7 @@ from monorarp.video.source import VideoSource, VideoSourceError
 ROOT = Path(__file__).resolve().parents[1]
 W, H, N_FRAMES, FPS = 320, 180, 20, 15.0
 TRACK_KEYS = {"id", "box", "coasting", "d_x", "d_y", "v_x", "v_y", "ttc"}
-RECORD_KEYS = {"frame", "t", "tracks", "risk", "risk_kind", "ego_speed", "ego_speed_source"}
+RECORD_KEYS = {"frame", "t", "tracks", "risk", "risk_kind", "ego_speed", "ego_speed_source", "warning"}
 
 
 def _strict(text: str):
