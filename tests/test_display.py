@@ -1,11 +1,16 @@
-"""The annotated display: box colours follow TTC, the gauge follows risk, the input is untouched."""
+"""The annotated display: box colours follow TTC, the gauge follows risk, the input is untouched;
+the warning banner and highlight follow the warning state; labels never overlap anything."""
 
 from __future__ import annotations
 
-import numpy as np
+from dataclasses import replace
 
-from monorarp.display import GREEN, ORANGE, RED, YELLOW, draw_frame, ttc_colour
-from monorarp.types import FrameResult, ObjectState, RiskEstimate, Track
+import numpy as np
+import pytest
+
+from monorarp.display import (BANNER_RED, GREEN, ORANGE, RED, YELLOW, draw_frame, layout_frame, place_labels,
+                              rects_overlap, ttc_colour)
+from monorarp.types import FrameResult, ObjectState, RiskEstimate, Track, WarningState
 
 
 def _result(ttc: dict, risk: float, kind: str = "inverse_ttc") -> FrameResult:
@@ -46,3 +51,147 @@ def test_gauge_fill_scales_with_risk():
     assert _gauge_fill(none, RED) <= 1 and _gauge_fill(none, GREEN) == 0     # only the 1/warning_s tick
     prob = _gauge_fill(draw_frame(img, _result({}, 0.8, "probability")), RED)
     assert abs(prob - 0.8 * bar) <= 3
+
+
+# --- Warning state and label layout -------------------------------------------------------------
+
+
+def _scene(w: int, h: int, rng: np.random.Generator, *, cluster: int = 0, n_random: int = 0,
+           active: bool = False, ttc_none: bool = False) -> FrameResult:
+    """``cluster`` boxes within a 60x20 px region near the horizon, ``n_random`` anywhere, one near box."""
+    tracks, states, ttc = [], {}, {}
+    x0, y0 = w / 2 - 30 + rng.uniform(-w / 4, w / 4), h / 2 - 10 + rng.uniform(-5, 5)
+    for i in range(cluster):
+        bw, bh = rng.uniform(3, 14), rng.uniform(3, 12)
+        x1, y1 = x0 + rng.uniform(0, 60 - bw), y0 + rng.uniform(0, 20 - bh)
+        tracks.append(Track(100 + i, (x1, y1, x1 + bw, y1 + bh)))
+    for i in range(n_random):
+        bw, bh = rng.uniform(4, w / 3), rng.uniform(4, h / 3)
+        x1, y1 = rng.uniform(-bw / 2, w - bw / 2), rng.uniform(0, h - bh / 2)
+        tracks.append(Track(200 + i, (x1, y1, min(w - 0.5, x1 + bw), min(h - 0.5, y1 + bh))))
+    tracks.append(Track(7, (w * 0.4, h * 0.6, w * 0.6, h * 0.8)))
+    for k, tr in enumerate(tracks):
+        if rng.uniform() < 0.85:                                 # some tracks have no state yet
+            states[tr.id] = ObjectState(tr.id, rng.uniform(-10, 10), rng.uniform(5, 120), 0.0, -1.0)
+        ttc[tr.id] = None if rng.uniform() < 0.4 else float(rng.uniform(0.5, 9.0))
+    ttc[7] = 1.2
+    warning = WarningState(True, 7, None if ttc_none else 1.2, 0, 0.0, (7,)) if active else WarningState()
+    return FrameResult(index=int(rng.integers(0, 100000)), t=float(rng.uniform(0, 1000)), detections=[],
+                       tracks=tracks, states=states, risk=RiskEstimate(1 / 1.2, ttc), ego_speed=27.0,
+                       timings_ms={"total": 12.5}, warning=warning)
+
+
+def _check_layout(layout, w: int, h: int) -> int:
+    placed = [lab.rect for lab in layout.labels if lab.rect is not None]
+    for r in placed:
+        assert 0 <= r[0] < r[2] <= w and 0 <= r[1] < r[3] <= h, r
+        for o in layout.obstacles:
+            assert not rects_overlap(r, o), (r, o)
+    for i, a in enumerate(placed):
+        for b in placed[i + 1:]:
+            assert not rects_overlap(a, b), (a, b)
+    return len(placed)
+
+
+@pytest.mark.parametrize("w,h", [(640, 360), (1920, 1080)])
+def test_labels_never_overlap_each_other_or_fixed_elements(w, h):
+    rng = np.random.default_rng(w)
+    for trial in range(30):
+        active = trial % 2 == 0
+        res = _scene(w, h, rng, cluster=15, n_random=int(rng.integers(0, 6)), active=active)
+        layout = layout_frame((h, w, 3), res)
+        assert (layout.banner is not None) == active and (layout.marker is not None) == active
+        assert (layout.highlight is not None) == active and (layout.indicator is None) == active
+        n = _check_layout(layout, w, h)
+        if active:                       # the warned object's label comes first and sits next to it
+            assert layout.labels[0].track_id == 7 and not layout.labels[0].leader
+        # 15 clustered far vehicles, a few others and the near one: every label finds a place.
+        assert n == len(res.tracks)
+    # Dense random scenes (up to 40 boxes anywhere): no overlap even when some labels find no place.
+    for trial in range(20):
+        res = _scene(w, h, rng, cluster=int(rng.integers(0, 20)), n_random=int(rng.integers(0, 25)),
+                     active=bool(trial % 2))
+        assert _check_layout(layout_frame((h, w, 3), res), w, h) > 0
+
+
+def test_tiny_image_keeps_the_rules():
+    rng = np.random.default_rng(2)
+    for active in (False, True):
+        res = _scene(160, 90, rng, cluster=15, n_random=3, active=active)
+        _check_layout(layout_frame((90, 160, 3), res), 160, 90)
+        assert draw_frame(np.zeros((90, 160, 3), np.uint8), res).shape == (90, 160, 3)
+
+
+def test_labels_are_drawn_where_the_layout_puts_them():
+    res = _scene(640, 360, np.random.default_rng(5), cluster=15, active=True)
+    out = draw_frame(np.full((360, 640, 3), 90, np.uint8), res)
+    for lab in layout_frame(out.shape, res).labels:
+        x1, y1, x2, y2 = lab.rect
+        assert tuple(out[y1, x1]) == lab.colour and tuple(out[y2 - 1, x2 - 1]) == lab.colour   # its frame
+        assert tuple(out[y1 + 1, x2 - 2]) == (0, 0, 0)                                        # black ground
+
+
+def test_place_labels_prefers_above_then_moves_aside():
+    box = (100, 100, 140, 120)
+    (above,) = place_labels([(30, 10)], [box], (640, 360))
+    assert above == (100, 88, 130, 98)                           # touching, above, left-aligned
+    blocker = (0, 60, 640, 99)                                   # everything above the box is taken
+    (moved,) = place_labels([(30, 10)], [box], (640, 360), [blocker])
+    assert moved is not None and not rects_overlap(moved, blocker) and not rects_overlap(moved, box)
+    # Two labels for one box never share pixels; a label that fits nowhere is None.
+    a, b = place_labels([(30, 10), (30, 10)], [box, box], (640, 360))
+    assert a != b and not rects_overlap(a, b)
+    assert place_labels([(30, 10)], [box], (640, 360), [(0, 0, 640, 360)]) == [None]
+    assert place_labels([(700, 10)], [box], (640, 360)) == [None]
+
+
+def _red_fraction(img: np.ndarray, rect) -> float:
+    x1, y1, x2, y2 = rect
+    return float(np.all(img[y1:y2, x1:x2] == np.array(BANNER_RED, np.uint8), axis=-1).mean())
+
+
+@pytest.mark.parametrize("w,h", [(640, 360), (1280, 720)])
+def test_warning_banner_and_highlight_only_when_active(w, h):
+    rng = np.random.default_rng(1)
+    active = _scene(w, h, rng, cluster=12, active=True)
+    inactive = replace(active, warning=WarningState())
+    img = np.full((h, w, 3), 90, np.uint8)
+    on, off = draw_frame(img, active), draw_frame(img, inactive)
+    banner = layout_frame(img.shape, active).banner
+    assert banner is not None and layout_frame(img.shape, inactive).banner is None
+    assert banner[1] < h // 4 and abs((banner[0] + banner[2]) / 2 - w / 2) <= 1        # top centre
+    assert _red_fraction(on, banner) > 0.5
+    assert _red_fraction(off, banner) == 0.0 and _red_fraction(off, (0, 0, w, h)) == 0.0
+    # The warned object's box (track 7) is framed thick red a few px outside; another box is not.
+    band = max(3, h // 120) | 1
+    c = 2 + band // 2
+
+    def frame_pixels(out, box):
+        x1, y1, x2, y2 = (int(round(box[0] + 0.5)), int(round(box[1] + 0.5)),
+                          int(round(box[2] - 0.5)), int(round(box[3] - 0.5)))
+        xm, ym = (x1 + x2) // 2, (y1 + y2) // 2
+        return [tuple(out[y1 - c - d, xm]) for d in (-1, 0, 1)] + [tuple(out[ym, x1 - c - d]) for d in (-1, 0, 1)] \
+            + [tuple(out[y2 + c, xm]), tuple(out[ym, x2 + c])]
+
+    warned = next(t for t in active.tracks if t.id == 7)
+    other = next(t for t in active.tracks if t.id == 100)
+    assert all(p == RED for p in frame_pixels(on, warned.box))
+    assert sum(p == RED for p in frame_pixels(off, warned.box)) <= 3      # at most a (red) label touching it
+    assert sum(p == RED for p in frame_pixels(on, other.box)) <= 3
+    # The marker above it is a red triangle.
+    mx1, my1, mx2, my2 = layout_frame(img.shape, active).marker
+    assert my2 <= warned.box[1] and tuple(on[(my1 + my2) // 2 - 1, (mx1 + mx2) // 2]) == RED
+    # Without a TTC (hold time) the banner still shows; a warning for a track not in view has no marker.
+    held = draw_frame(img, replace(active, warning=replace(active.warning, ttc=None)))
+    assert _red_fraction(held, banner) > 0.5
+    lost = replace(active, warning=replace(active.warning, track_id=999))
+    assert layout_frame(img.shape, lost).marker is None and _red_fraction(draw_frame(img, lost), banner) > 0.5
+
+
+def test_drawing_is_deterministic_and_independent_of_track_order():
+    res = _scene(640, 360, np.random.default_rng(3), cluster=15, n_random=4, active=True)
+    img = np.full((360, 640, 3), 90, np.uint8)
+    first = draw_frame(img, res)
+    assert np.array_equal(first, draw_frame(img, res))
+    shuffled = replace(res, tracks=list(reversed(res.tracks)))
+    assert np.array_equal(first, draw_frame(img, shuffled))

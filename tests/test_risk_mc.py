@@ -503,3 +503,105 @@ def test_backend_option(monkeypatch):
     assert MonteCarloRisk(n_rollouts=8).backend == "numpy"            # auto falls back
     with pytest.raises(MonteCarloConfigError, match="numba"):
         MonteCarloRisk(n_rollouts=8, backend="numba")
+
+
+# ----------------------------------------------------------------------------- ego model
+_NO_NOISE = dict(position_m=0.0, position_rel=0.0, lateral_m=0.0, speed_mps=0.0, speed_rel=0.0, ego_speed_mps=0.0)
+# desired speeds pinned to the current speed (a stopped car stays (almost) stopped: it creeps < 0.3 m in 3 s)
+_STILL_DRIVERS = DriverDistribution(v0_rel_std=0.0, v0_min_std_mps=1e-3, v0_floor_mps=1e-3)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_constant_speed_ego_hits_a_stopped_car_at_the_closed_form_ttc(backend):
+    """A non-reacting ego (FCW test protocols) at v towards a stopped car d ahead collides in every rollout,
+    at the constant-velocity TTC (d - ego front offset) / v; the default IDM ego brakes and avoids it."""
+    d, v, dt = 60.0, 20.0, 0.2
+    stopped = {1: _state(1, 0.0, d, v_y=-v)}
+    ttc_cv = (d - 4.5 / 2.0) / v                                    # camera at the ego's centre: front offset 2.25 m
+    kw = dict(n_rollouts=200, dt=dt, dtype="float64", backend=backend, noise=_NO_NOISE, drivers=_STILL_DRIVERS)
+    est = MonteCarloRisk(ego_model="constant_speed", **kw)
+    r = est.assess(stopped, 0.0, ego_speed=v)
+    res = est.last_result
+    assert r.risk == 1.0
+    assert np.isfinite(res.collision_t[:, 1]).all()                 # every rollout collides ...
+    assert ((res.collision_t[:, 1] >= ttc_cv) & (res.collision_t[:, 1] <= ttc_cv + dt)).all()  # ... at the grid step
+    assert r.ttc[1] == pytest.approx(ttc_cv, abs=dt)
+    assert np.abs(res.conflict_t[:, 1] - ttc_cv).max() < 0.05      # measured ~0.02 s (the stopped car creeps)
+    # with the default noise and drivers too
+    r_noisy = MonteCarloRisk(n_rollouts=200, dt=dt, backend=backend, ego_model="constant_speed").assess(
+        stopped, 0.0, ego_speed=v)
+    assert r_noisy.risk == 1.0 and r_noisy.ttc[1] == pytest.approx(ttc_cv, abs=dt)
+    # the IDM ego has 57.75 m to stop from 20 m/s (needs ~25 m at 8 m/s^2): it brakes, no collision
+    est_idm = MonteCarloRisk(ego_model="idm", **kw)
+    r_idm = est_idm.assess(stopped, 0.0, ego_speed=v)
+    assert np.isinf(est_idm.last_result.collision_t[:, 1]).mean() >= 0.9
+    assert r_idm.risk <= 0.1 and r_idm.ttc[1] is None
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_constant_speed_ego_holds_speed_and_lane_while_others_react(backend):
+    states = {1: _state(1, 0.0, 25.0, v_y=-8.0), 2: _state(2, 3.7, 10.0, v_y=-3.0), 3: _state(3, 0.0, -15.0, v_y=2.0)}
+    est = MonteCarloRisk(n_rollouts=50, seed=4, dtype="float64", backend=backend, lanes_left=1, lanes_right=1,
+                         ego_model="constant_speed")
+    assert est.config.ego_model == "constant_speed" and not est.ego_lane_changes
+    scene, params = est.build(states, 22.0)
+    np.testing.assert_array_equal(scene.v[:, 0], 22.0)              # no ego-speed noise
+    lo, hi = est._lanes
+    cfg = replace(est.config, lane_min=lo, lane_max=hi)
+    res = _sim(backend)(scene, params, cfg, record=True)
+    t = np.arange(cfg.n_steps + 1) * cfg.dt
+    np.testing.assert_array_equal(res.v[:, :, 0], 22.0)
+    np.testing.assert_allclose(res.x[:, :, 0], 22.0 * t[:, None] * np.ones((1, 50)), rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(res.y[:, :, 0], 0.0)
+    assert (res.lane_changes[:, 0] == 0).all()
+    assert np.ptp(res.v[:, :, 1:]) > 1.0                           # the others still drive IDM/MOBIL
+    # the follower closing on the ego from behind (24 m/s) brakes for it in every rollout
+    assert (res.v[:, :, 3].min(axis=0) < res.v[0, :, 3] - 1.0).all()
+
+
+@needs_numba
+def test_numba_and_numpy_backends_agree_with_constant_speed_ego():
+    """Parity as :func:`test_numba_and_numpy_backends_agree`, with the ego holding its speed and lane."""
+    s_total = lanes = conflicts = 0
+    for name, states, v_e, left, right in _parity_scenes():
+        kw = dict(n_rollouts=400, seed=5, dtype="float64", lanes_left=left, lanes_right=right,
+                  ego_model="constant_speed")
+        a, b = MonteCarloRisk(backend="numpy", **kw), MonteCarloRisk(backend="numba", **kw)
+        ra, rb = a.assess(states, 0.0, ego_speed=v_e), b.assess(states, 0.0, ego_speed=v_e)
+        pa, pb = a.last_result, b.last_result
+        fa, fb = np.isfinite(pa.conflict_t[:, 1:]).any(1), np.isfinite(pb.conflict_t[:, 1:]).any(1)
+        assert (fa == fb).mean() >= 0.99, name
+        p = 0.5 * (ra.risk + rb.risk)
+        assert abs(ra.risk - rb.risk) <= np.sqrt(p * (1 - p) / 400), name
+        for t_a, t_b in ((pa.conflict_t, pb.conflict_t), (pa.collision_t, pb.collision_t)):
+            both = np.isfinite(t_a) & np.isfinite(t_b)
+            np.testing.assert_allclose(t_a[both], t_b[both], rtol=0, atol=1e-6, err_msg=name)
+            assert (np.isfinite(t_a) == np.isfinite(t_b)).mean() >= 0.99, name
+        assert (pa.lane_changes == pb.lane_changes).mean() >= 0.99, name
+        assert (pa.lane_changes[:, 0] == 0).all() and (pb.lane_changes[:, 0] == 0).all(), name
+        s_total += 400
+        lanes += int(pa.lane_changes.sum())
+        conflicts += int(fa.sum())
+    assert lanes > 500 and 200 < conflicts < s_total - 50     # measured 1867 of 2000: the ego never brakes
+    # whole trajectories, one scene
+    est = MonteCarloRisk(n_rollouts=60, seed=1, dtype="float64", backend="numpy", lanes_left=1, lanes_right=1,
+                         ego_model="constant_speed")
+    _, states, v_e, _, _ = _parity_scenes()[1]
+    scene, params = est.build(states, v_e)
+    cfg = replace(est.config, lane_min=est._lanes[0], lane_max=est._lanes[1])
+    ta, tb = simulate(scene, params, cfg, record=True), simulate_numba(scene, params, cfg, record=True)
+    for f in ("x", "y", "v"):
+        np.testing.assert_allclose(getattr(tb, f), getattr(ta, f), rtol=0, atol=1e-6)
+
+
+def test_ego_model_option_is_validated():
+    from monorarp.errors import UserError
+    from monorarp.risk_mc.estimator import MonteCarloConfigError
+
+    assert MonteCarloRisk(n_rollouts=8, backend="numpy").ego_model == "idm"
+    with pytest.raises(MonteCarloConfigError, match="ego_model.*'constant_velocity'"):
+        MonteCarloRisk(n_rollouts=8, backend="numpy", ego_model="constant_velocity")
+    with pytest.raises(UserError, match="ego_model"):
+        MonteCarloRisk(n_rollouts=8, backend="numpy", ego_model=None)
+    with pytest.raises(ValueError, match="ego_model"):
+        RolloutConfig(ego_model="cv")

@@ -26,6 +26,15 @@ rollouts conflict with that vehicle. The rollouts hold at most
 ``rollout.MAX_VEHICLES - 1`` (60) tracked vehicles: with more, the nearest are
 simulated and the others get ``None``.
 
+Ego model (``ego_model=``): ``"idm"`` (default) simulates the ego as an
+IDM/MOBIL driver like the others (it brakes for a slower lead, may change
+lane). ``"constant_speed"`` makes the ego hold its speed and lane in every
+rollout (no acceleration, no lane change, no ego-speed noise; ``ego_lane_changes``
+is then moot) while the other vehicles still react to it: use it for a scenario
+whose ego is known to drive at constant speed, e.g. forward-collision-warning
+test protocols where the driver does not react -- there ``"idm"`` would brake
+and under-predict exactly the collisions being scored.
+
 Absolute speeds = ego speed + relative speeds. The ego speed is, in order: the
 ``ego_speed`` argument of :meth:`assess`, the last value given to
 :meth:`set_ego_speed` (e.g. the ego-speed estimator's output), the configured
@@ -60,7 +69,7 @@ import numpy as np
 from monorarp.errors import UserError
 from monorarp.registry import register
 from monorarp.risk_mc.drivers import ROW_NV, ROW_NX, ROW_NY, DriverDistribution, DriverParams
-from monorarp.risk_mc.rollout import MAX_VEHICLES, RolloutConfig, RolloutResult, Scene, simulate
+from monorarp.risk_mc.rollout import EGO_MODELS, MAX_VEHICLES, RolloutConfig, RolloutResult, Scene, simulate
 from monorarp.risk_mc.scene import Geometry, Noise, lane_of, lane_range, road_positions
 from monorarp.types import ObjectState, RiskEstimate
 
@@ -101,6 +110,9 @@ class MonteCarloRisk:
     closed-form CV contact test covers the next 1 s), and it halves the cost
     of 0.1 s (50 steps for the 10 s horizon). ``backend`` picks the rollout
     implementation (module docstring); ``self.backend`` is the one in use.
+    ``ego_model="constant_speed"`` keeps the ego at its speed and in its lane in
+    every rollout (a non-reacting driver, as in FCW test protocols); the default
+    ``"idm"`` lets it brake and change lane like the other drivers.
     """
 
     def __init__(
@@ -133,11 +145,14 @@ class MonteCarloRisk:
         dtype: str = "float32",
         backend: Literal["auto", "numba", "numpy"] = "auto",
         warm_up: bool = True,
+        ego_model: Literal["idm", "constant_speed"] = "idm",
     ) -> None:
         if n_rollouts < 1:
             raise MonteCarloConfigError(f"n_rollouts must be >= 1, got {n_rollouts}")
         if score not in ("probability", "inverse_ttc"):
             raise MonteCarloConfigError(f"score must be 'probability' or 'inverse_ttc', got {score!r}")
+        if ego_model not in EGO_MODELS:
+            raise MonteCarloConfigError(f"ego_model must be one of {EGO_MODELS}, got {ego_model!r}")
         self.backend = resolve_backend(backend)   # the one in use: "numba" or "numpy"
         self._simulate = simulate
         if self.backend == "numba":
@@ -153,7 +168,8 @@ class MonteCarloRisk:
         self.score = score
         self.ego_speed_mps = ego_speed_mps
         self.lanes_left, self.lanes_right = lanes_left, lanes_right
-        self.ego_lane_changes = ego_lane_changes
+        self.ego_model = ego_model
+        self.ego_lane_changes = ego_lane_changes and ego_model == "idm"
         self.lateral_lookahead_s = lateral_lookahead_s
         self.geometry = Geometry(vehicle_length_m, vehicle_width_m, ego_length_m, ego_width_m,
                                  camera_forward_offset_m, camera_lateral_offset_m, lane_width_m)
@@ -164,7 +180,7 @@ class MonteCarloRisk:
                                     lane_change_duration_s=lane_change_duration_s,
                                     lane_change_cooldown_s=lane_change_cooldown_s,
                                     decel_limit_mps2=decel_limit_mps2, near_miss_ttc_s=near_miss_ttc_s,
-                                    dtype=dtype)
+                                    dtype=dtype, ego_model=ego_model)
         self._fed_ego_speed: float | None = None
         self._blocks: dict[int, np.ndarray] = {}
         self.ego_speed_source = "none"
@@ -214,6 +230,8 @@ class MonteCarloRisk:
         x_nom, y_nom = road_positions(d_x, d_y, geo)
         dist = np.hypot(x_nom, y_nom)
         v_ego = ego_speed + nz.ego_speed_mps * blocks[ROW_NV, :, :1]                          # (S, 1)
+        if self.ego_model == "constant_speed":   # exactly the given speed: no ego noise (relative speeds keep theirs)
+            v_ego = np.full((S, 1), ego_speed)
         x = x_nom + (nz.position_m + nz.position_rel * dist) * blocks[ROW_NX, :, 1:]
         y = y_nom + nz.lateral_m * blocks[ROW_NY, :, 1:]
         v = v_ego + v_y + (nz.speed_mps + nz.speed_rel * dist) * blocks[ROW_NV, :, 1:]

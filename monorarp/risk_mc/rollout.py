@@ -32,6 +32,12 @@ Per step (``dt``):
    back at the same rate. While changing it occupies both lanes (both lanes'
    followers see it). Membership is updated at relink steps only.
 
+The ego follows ``RolloutConfig.ego_model``: ``"idm"`` (default) drives it like
+every other vehicle (IDM, and MOBIL where ``Scene.mobil[0]``); with
+``"constant_speed"`` it holds its initial speed, lateral position and lane for
+the whole horizon (acceleration 0, no lane change, no lateral motion -- a
+driver who does not react), while the others still react to it.
+
 Conflicts with the ego are checked at every step (``t_k = k dt``, k = 0..K):
 the constant-velocity time to contact of the two axis-aligned rectangles from
 the current positions and velocities (closed form, as :mod:`monorarp.ttc`). A
@@ -50,6 +56,9 @@ import numpy as np
 
 from monorarp.risk_mc.drivers import DriverParams
 from monorarp.risk_mc.idm import MIN_GAP_M, mobil_safe
+
+EGO_MODELS = ("idm", "constant_speed")
+
 
 @dataclass(frozen=True)
 class RolloutConfig:
@@ -71,8 +80,11 @@ class RolloutConfig:
     integrator: Literal["ballistic", "euler"] = "ballistic"
     near_miss_ttc_s: float = 1.0
     dtype: str = "float64"            # state dtype; "float32" is faster, float64 for parity checks
+    ego_model: Literal["idm", "constant_speed"] = "idm"   # constant_speed: vehicle 0 holds speed and lane
 
     def __post_init__(self) -> None:
+        if self.ego_model not in EGO_MODELS:
+            raise ValueError(f"ego_model must be one of {EGO_MODELS}, got {self.ego_model!r}")
         if not (self.dt > 0 and self.horizon_s > 0 and self.lane_width_m > 0):
             raise ValueError("dt, horizon_s and lane_width_m must be positive")
         if self.lane_min > self.lane_max:
@@ -291,10 +303,16 @@ def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bo
     cur = np.clip(np.rint(y / W).astype(np.int64), cfg.lane_min, cfg.lane_max)
     tgt = np.clip(np.clip(np.asarray(scene.target_lane, dtype=np.int64).T, cfg.lane_min, cfg.lane_max),
                   cur - 1, cur + 1)
+    ego_cv = cfg.ego_model == "constant_speed"
+    mobil = np.asarray(scene.mobil, bool)
+    if ego_cv:   # the ego keeps its lane: no target lane of its own, no MOBIL
+        tgt[0] = cur[0]
+        mobil = mobil.copy()
+        mobil[0] = False
     tgt_y = (tgt * W).astype(f)
     last_change = np.full((n, s), -np.inf)
     lane_changes = np.zeros((n, s), dtype=int)
-    can_mobil = np.broadcast_to(np.asarray(scene.mobil, bool)[:, None], (n, s)) & (cfg.lane_max > cfg.lane_min)
+    can_mobil = np.broadcast_to(mobil[:, None], (n, s)) & (cfg.lane_max > cfg.lane_min)
     any_mobil = bool(can_mobil.any())
     v_lat = W / cfg.lane_change_duration_s
 
@@ -312,6 +330,8 @@ def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bo
             vy = np.subtract(tgt_y, y)
             vy *= 1.0 / dt
             np.clip(vy, -v_lat, v_lat, out=vy)
+            if ego_cv:
+                vy[0] = 0.0
             # ---- conflicts with the ego at t_k: closed-form constant-velocity contact window of two rectangles
             if n > 1:
                 _conflicts(t, x[1:n] - x[0], v[1:n] - v[0], y[1:] - y[0], vy[1:] - vy[0], hx, hy,
@@ -360,6 +380,8 @@ def _simulate(scene: Scene, params: DriverParams, cfg: RolloutConfig, record: bo
                     slot_tgt = order.slot(tgt)
                     order.add(slot_tgt, change)
                     lead = order.leaders(np.stack([slot_cur, slot_tgt]))
+            if ego_cv:
+                acc[0] = 0.0
             np.clip(acc, -cfg.decel_limit_mps2, cfg.accel_limit_mps2, out=acc)
             # ---- integrate
             if cfg.integrator == "euler":

@@ -123,9 +123,13 @@ def _followers(order, cur, tgt, n, lane_min, seen, foll_l, foll_r, foll_o):
 def _kernel(x0, y0, v0s, cur0, tgt0, hl_in, hx, hy, can_mobil,
             inv_v0_in, a_in, T_in, c_in, s0_in, p_in, th_in, bsafe_in,
             dt, n_steps, W, lane_min, lane_max, mobil_every, v_lat, min_speed, cooldown,
-            accel_limit, decel_limit, floor_s_star, euler, near_miss, record,
+            accel_limit, decel_limit, floor_s_star, euler, near_miss, ego_cv, record,
             conflict_t, collision_t, lane_changes, rec_x, rec_y, rec_v):
-    """Simulate every sample (rows of the (S, N) inputs); writes the (S, N) outputs and, if ``record``, (K+1, S, N)."""
+    """Simulate every sample (rows of the (S, N) inputs); writes the (S, N) outputs and, if ``record``, (K+1, S, N).
+
+    ``ego_cv``: the ego (vehicle 0) holds its speed and lateral position (acceleration 0, no lateral
+    motion; the caller has already set its target lane to its current one and switched its MOBIL off).
+    """
     S, n = x0.shape
     any_mobil = False
     for i in range(n):
@@ -184,6 +188,8 @@ def _kernel(x0, y0, v0s, cur0, tgt0, hl_in, hx, hy, can_mobil,
             for i in range(n):
                 q = (tgt_y[i] - y[i]) * (1.0 / dt)
                 vy[i] = -v_lat if q < -v_lat else (v_lat if q > v_lat else q)
+            if ego_cv:
+                vy[0] = 0.0
             # ---- conflicts with the ego at t_k (closed-form CV contact window of two rectangles)
             for i in range(1, n):
                 if collision_t[s, i] != np.inf:   # first conflict and first collision both known
@@ -230,6 +236,10 @@ def _kernel(x0, y0, v0s, cur0, tgt0, hl_in, hx, hy, can_mobil,
                 r *= r
                 free[i] = r * r
             for i in range(n):
+                if ego_cv and i == 0:   # no IDM for a constant-speed ego (it is never a MOBIL candidate)
+                    acc_raw[0] = 0.0
+                    acc[0] = 0.0
+                    continue
                 a = a_in[s, i]
                 afree[i] = (1.0 - free[i]) * a
                 l0 = lead_cur[i]
@@ -372,6 +382,10 @@ def simulate_numba(scene: Scene, params: DriverParams, cfg: RolloutConfig, recor
     hx, hy = (length + length[0]) / 2.0, (width + width[0]) / 2.0
     can_mobil = np.ascontiguousarray(np.broadcast_to(np.asarray(scene.mobil, bool), (n,))
                                      & (cfg.lane_max > cfg.lane_min))
+    ego_cv = cfg.ego_model == "constant_speed"
+    if ego_cv:   # the ego keeps its lane: no target lane of its own, no MOBIL (as the numpy path)
+        tgt[:, 0] = cur[:, 0]
+        can_mobil[0] = False
     a, b = f64(params.a), f64(params.b)
     c = 0.5 / np.sqrt(a * b)
     conflict_t, collision_t = np.empty((s, n)), np.empty((s, n))
@@ -387,7 +401,7 @@ def simulate_numba(scene: Scene, params: DriverParams, cfg: RolloutConfig, recor
             int(max(1, int(round(cfg.mobil_interval_s / dt)))), float(W / cfg.lane_change_duration_s),
             float(cfg.min_lane_change_speed_mps), float(cfg.lane_change_cooldown_s),
             float(cfg.accel_limit_mps2), float(cfg.decel_limit_mps2), bool(cfg.floor_s_star),
-            cfg.integrator == "euler", float(cfg.near_miss_ttc_s), bool(record),
+            cfg.integrator == "euler", float(cfg.near_miss_ttc_s), ego_cv, bool(record),
             conflict_t, collision_t, lane_changes, *rec)
     out = RolloutResult(conflict_t, collision_t, lane_changes)
     if record:
