@@ -292,6 +292,11 @@ class StateEstimator:
             ``ObjectState.v_x_std``, while the box is cut by a side border (the lateral reading is then
             the near-edge model's, biased as the vehicle leaves the view).
         forget_s: a track id unseen for this long (s) loses its history.
+        reinit_sigmas: a measurement this many sigmas of its innovation away from the prediction
+            (either axis) restarts the track's filter at the measurement with the wide prior, as a
+            new sighting: a jump of that size is the tracker's box moving to another vehicle (or to
+            part of one), not motion, and absorbed by the filter it reads as tens of m/s of closing
+            speed that a warning would trust (``inf``: never).
     """
 
     def __init__(self, camera: CameraModel | dict, velocity: str = "kalman", motion: str = "ca",
@@ -299,7 +304,7 @@ class StateEstimator:
                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17, max_coast_used: int = 2,
                  init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0,
                  vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX,
-                 side_cut_lateral_std_mps: float = 2.0) -> None:
+                 side_cut_lateral_std_mps: float = 2.0, reinit_sigmas: float = 5.0) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -314,6 +319,9 @@ class StateEstimator:
         self.border_tol_px = None if border_tol_px is None else float(border_tol_px)
         self.max_coast_used = int(max_coast_used)
         self.side_cut_lateral_std_mps = float(side_cut_lateral_std_mps)
+        if not reinit_sigmas > 0:
+            raise ValueError(f"reinit_sigmas must be > 0, got {reinit_sigmas}")
+        self.reinit_sigmas = float(reinit_sigmas)
         n = 2 if motion == "cv" else 3
         self._prior_var = np.array([0.0, init_vel_std ** 2, init_acc_std ** 2][:n])
         self.forget_s = float(forget_s)
@@ -404,13 +412,14 @@ class StateEstimator:
         if self.velocity == "kalman":
             boxes = np.array([tr.box for tr in usable], dtype=float)
             cut_bottom = border_flags(self.camera, boxes, self.border_tol_px)[:, 2]
-            out, std = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom)
+            out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom)
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
-            return {tid: ObjectState(tid, *map(float, row), *map(float, sd))
-                    for tid, row, sd, good in zip(ids, out, std, ok) if good}
+            return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac))
+                    for tid, row, sd, ac, good in zip(ids, out, std, acc if acc is not None else [None] * len(ids), ok)
+                    if good}
         out = self._difference(ids, d_y, terms, known, ok, t)
         return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}
 
@@ -435,8 +444,9 @@ class StateEstimator:
     def _kalman(self, ids, d_y, terms, coasting, known, ok, t, cut_bottom=None) -> np.ndarray:
         """Kalman filter per track and axis, vectorised over both (arrays of shape (M, 2, n)).
 
-        Returns the (M, 4) states ``(d_x, d_y, v_x, v_y)`` and their (M, 4) one-sigma
-        uncertainties from the filter's covariance (m, m/s).
+        Returns the (M, 4) states ``(d_x, d_y, v_x, v_y)``, their (M, 4) one-sigma
+        uncertainties from the filter's covariance (m, m/s), and with the ``"ca"`` model the
+        (M, 2) longitudinal acceleration and its one-sigma uncertainty (m/s^2; else None).
 
         A box cut by the image's bottom border gives no distance, but bounds it: the vehicle's
         rear is nearer than the ground seen at the bottom row (:meth:`near_limit_m`) and not
@@ -458,13 +468,16 @@ class StateEstimator:
         has = np.isfinite(z)
         zf = np.where(has, z, x[:, :, 0])
         r = self.measurement_var(np.nan_to_num(zf, nan=1.0))
-        for j, k in enumerate(known):
-            if not k and ok[j]:   # first sighting: at the measurement, at rest (the paper's v = 0), wide prior
-                x[j] = 0.0
-                x[j, :, 0] = zf[j]
-                P[j] = np.diag(self._prior_var)[None] + 0.0
-                P[j, :, 0, 0] = r[j]
-        upd = (known & ~coasting)[:, None] & has
+        # A jump far beyond the innovation's spread: another vehicle's box, restart (class docstring).
+        nis = np.where(has, (zf - x[:, :, 0]) ** 2 / (P[:, :, 0, 0] + r), 0.0)
+        fresh = ~known | (known & ~coasting & (nis > self.reinit_sigmas ** 2).any(axis=1))
+        for j in np.flatnonzero(fresh & ok):
+            # first sighting: at the measurement, at rest (the paper's v = 0), wide prior
+            x[j] = 0.0
+            x[j, :, 0] = zf[j]
+            P[j] = np.diag(self._prior_var)[None] + 0.0
+            P[j, :, 0, 0] = r[j]
+        upd = (~fresh & ~coasting)[:, None] & has
         xu, Pu = kf_update(x, P, np.nan_to_num(zf), r)
         x, P = np.where(upd[..., None], xu, x), np.where(upd[..., None, None], Pu, P)
         if cut_bottom is not None:
@@ -477,4 +490,5 @@ class StateEstimator:
             if ok[j]:
                 self._state[i], self._t[i] = (x[j], P[j]), t
         std = np.sqrt(np.maximum(np.concatenate([P[:, :, 0, 0], P[:, :, 1, 1]], axis=1), 0.0))
-        return np.concatenate([x[:, :, 0], x[:, :, 1]], axis=1), std
+        acc = None if n < 3 else np.stack([x[:, 1, 2], np.sqrt(np.maximum(P[:, 1, 2, 2], 0.0))], axis=1)
+        return np.concatenate([x[:, :, 0], x[:, :, 1]], axis=1), std, acc

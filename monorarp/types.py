@@ -62,6 +62,10 @@ class ObjectState:
     d_y_std: float | None = None
     v_x_std: float | None = None
     v_y_std: float | None = None
+    # Relative longitudinal acceleration (m/s^2) and its one-sigma uncertainty, where the
+    # estimator has them (the constant-acceleration Kalman filter); None otherwise.
+    a_y: float | None = None
+    a_y_std: float | None = None
 
 
 @dataclass(frozen=True)

@@ -359,3 +359,23 @@ def test_vehicle_stuck_below_the_bottom_border_is_not_extrapolated_through_the_e
     late = [s.d_y for s in states[30:]]
     assert all(0.0 <= y <= est.near_limit_m + 1e-9 for y in late)
     assert states[-1].v_y == 0.0 or states[-1].d_y > 0.0
+
+
+def test_a_jump_to_another_vehicle_restarts_the_filter(level_cam):
+    """A box that jumps from a car at ~20 m to one at ~40 m is a new sighting, not 300 m/s of motion."""
+    cam = level_cam
+    near = vehicle_box(cam, 0.0, 20.0)
+    far = vehicle_box(cam, 0.0, 40.0)
+    frames = [near] * 10 + [far] * 3
+    for sigmas, restarted in ((5.0, True), (math.inf, False)):
+        est = StateEstimator(cam, reinit_sigmas=sigmas)
+        for k, box in enumerate(frames[:11]):
+            out = est.update([Track(id=1, box=box)], k / 15)
+        st = out[1]
+        if restarted:
+            assert st.v_y == pytest.approx(0.0) and st.d_y == pytest.approx(est.measure(np.array([far]))[0, 1])
+            assert st.v_y_std == pytest.approx(10.0, rel=0.05)      # the wide prior: unknown velocity
+        else:
+            assert st.v_y > 3.0 and st.d_y < 30.0      # absorbed: a spurious opening speed, a lagging distance
+    assert StateEstimator(cam).update([Track(id=1, box=near)], 0.0)[1].a_y == pytest.approx(0.0)
+    assert StateEstimator(cam, motion="cv").update([Track(id=1, box=near)], 0.0)[1].a_y is None

@@ -70,3 +70,50 @@ def test_registered_and_in_the_default_pipeline():
 
     assert "fcw" in registry.available("warning")
     assert PipelineConfig(detector={"name": "centernet"}).warning.name == "fcw"
+
+
+def _simulated_closing_time(gap: float, v: float, a: float, dt: float = 1e-4, horizon: float = 20.0) -> float:
+    """Independent reference: integrate the gap forward in small steps."""
+    t = 0.0
+    while t < horizon:
+        if gap <= 0:
+            return t
+        gap += v * dt + 0.5 * a * dt * dt
+        v += a * dt
+        t += dt
+    return math.inf
+
+
+@pytest.mark.parametrize("gap,v,a", [(20.0, -10.0, 0.0), (15.0, 0.0, -5.0), (30.0, -5.0, -2.94),
+                                     (20.0, -10.0, 3.0), (20.0, -4.0, 3.0), (10.0, 2.0, -1.0), (10.0, 2.0, 0.0)])
+def test_closing_time_matches_integrated_kinematics(gap, v, a):
+    from monorarp.ttc import closing_time
+
+    got = float(closing_time(gap, v, a))
+    want = _simulated_closing_time(gap, v, a)
+    if math.isinf(want):
+        assert math.isinf(got)
+    else:
+        assert got == pytest.approx(want, abs=2e-3)
+
+
+def test_acceleration_brings_a_braking_lead_sooner_only_when_significant():
+    # Lead 15 m ahead (rear face; camera at the ego's front), same speed, braking relative 5 m/s^2.
+    braking = ObjectState(1, 0.0, 15.0, 0.0, 0.0, v_x_std=0.1, v_y_std=0.1, a_y=-5.0, a_y_std=0.5)
+    ttc = fcw(accel_sigmas=2.0).threats({1: braking})[1]
+    from monorarp.ttc import closing_time
+    assert ttc == pytest.approx(float(closing_time(15.0 - 1.75, 0.0, -5.0 + 2 * 0.5)))   # a shrunk by 2 sigma
+    assert fcw(accel_sigmas=None).threats({1: braking}) == {}                              # constant velocity: never
+    noisy = ObjectState(1, 0.0, 15.0, 0.0, 0.0, v_x_std=0.1, v_y_std=0.1, a_y=-5.0, a_y_std=3.0)
+    assert fcw(accel_sigmas=2.0).threats({1: noisy}) == {}                                 # within its noise
+
+
+def test_implausible_motion_raises_no_threat():
+    # Two lanes over, read as cutting across at 8 m/s: an artefact, not a vehicle (not clipped into a threat).
+    jumpy = ObjectState(1, 7.5, 10.0, -8.0, -10.0, v_x_std=0.1, v_y_std=0.1)
+    assert fcw().threats({1: jumpy}) == {}
+    assert fcw(max_lateral_speed_mps=20.0).threats({1: jumpy})        # the same, allowed: in path
+    # A far track closing at 60 m/s (216 km/h): a mis-scaled box, not a car.
+    far = ObjectState(2, 0.0, 100.0, 0.0, -60.0, v_x_std=0.1, v_y_std=0.1)
+    assert fcw().threats({2: far}) == {}
+    assert fcw(max_closing_speed_mps=80.0).threats({2: far})

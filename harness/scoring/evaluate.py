@@ -116,6 +116,7 @@ def frame_records(truth: Mapping, result: FrameResult, cfg: EvalConfig,
         st = result.states.get(tr.id)
         if st is not None:
             r.d_y_est, r.d_x_est, r.v_y_est, r.v_x_est = st.d_y, st.d_x, st.v_y, st.v_x
+            r.d_y_std, r.d_x_std, r.v_y_std, r.v_x_std = map(_f, (st.d_y_std, st.d_x_std, st.v_y_std, st.v_x_std))
         r.ttc_est = _f(result.risk.ttc.get(tr.id))
 
     for g, o in enumerate(objects):

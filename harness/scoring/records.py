@@ -46,6 +46,10 @@ class ObjectRecord:
     est_y1: float = NAN
     est_x2: float = NAN
     est_y2: float = NAN
+    d_y_std: float = NAN         # the estimator's one-sigma uncertainties (NaN: it gives none)
+    d_x_std: float = NAN
+    v_y_std: float = NAN
+    v_x_std: float = NAN
 
     @property
     def is_false_track(self) -> bool:
