@@ -1,12 +1,14 @@
 """End-to-end sweep throughput: simulated frames per second, aggregated over runs (simulate, render,
 run the pipeline, score, write), at 640x360, with 1 and 2 local workers (and optionally Ray).
 
-    python benchmarks/bench_sweep.py [--workers 1 2] [--seeds 4] [--frames 60] [--ray]
+    python benchmarks/bench_sweep.py [--workers 1 2] [--seeds 4] [--frames 60] [--ray] [--cache DIR|off]
 
 Each configuration runs the same sweep (one scenario x N seeds x one variant) into a fresh
 directory; the figure is total frames / wall time of the whole `run_sweep` call, which includes
 worker start-up, expansion, summary and report. The per-run figure (frames / run wall time,
-from run.json) shows the steady state without those fixed costs.
+from run.json) shows the steady state without those fixed costs. The frame cache is off unless
+``--cache DIR`` is given (then every configuration after the first reads its frames from it).
+Scaling (speed-up, efficiency) and cold/warm cache: ``benchmarks/bench_sweep_scaling.py``.
 """
 
 from __future__ import annotations
@@ -27,22 +29,24 @@ sys.path.insert(0, str(ROOT))
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 
-def write_spec(tmp: Path, args: argparse.Namespace) -> Path:
-    spec = {"name": "bench", "scenarios": [{"file": str((ROOT / args.scenario).resolve()),
-                                            "overrides": {"duration_s": args.frames / 15 + 1, "fps": 15}}],
+def write_spec(tmp: Path, args: argparse.Namespace, trackers: list[str] | None = None, name: str = "bench") -> Path:
+    """A sweep spec: ``args.scenario`` x ``args.seeds`` seeds x one variant per tracker (default ``args.tracker``)."""
+    spec = {"name": name, "scenarios": [{"file": str((ROOT / args.scenario).resolve()),
+                                         "overrides": {"duration_s": args.frames / 15 + 1, "fps": 15}}],
             "seeds": list(range(1, args.seeds + 1)), "frames": args.frames,
             "overrides": {"camera.width": 640, "camera.height": 360},
-            "variants": [{"name": args.tracker, "detector": args.detector, "tracker": args.tracker}]}
-    p = tmp / "bench.yaml"
+            "variants": [{"name": t, "detector": args.detector, "tracker": t} for t in trackers or [args.tracker]]}
+    p = tmp / f"{name}.yaml"
     p.write_text(yaml.safe_dump(spec, sort_keys=False))
     return p
 
 
-def bench(spec: Path, out: Path, executor: str, workers: int) -> dict:
+def bench(spec: Path, out: Path, executor: str, workers: int, cache: object = None) -> dict:
+    """One ``run_sweep`` into ``out``; ``cache``: a :class:`harness.frame_cache.FrameCache` or None (off)."""
     from harness.sweep.orchestrate import run_sweep
 
     t0 = time.perf_counter()
-    res = run_sweep(spec, out, executor=executor, workers=workers, progress=False)
+    res = run_sweep(spec, out, executor=executor, workers=workers, progress=False, cache=cache)
     wall = time.perf_counter() - t0
     if res.failed:
         raise SystemExit(f"runs failed: {[r['error'] for r in res.failed]}")
@@ -51,7 +55,8 @@ def bench(spec: Path, out: Path, executor: str, workers: int) -> dict:
     per_run_fps = [r["metrics"]["frames"] / w for r, w in zip(res.rows, run_walls)]
     pipeline_fps = statistics.mean(r["metrics"]["fps"] for r in res.rows)
     return {"executor": executor, "workers": workers, "runs": len(res.rows), "frames": frames, "wall_s": wall,
-            "fps": frames / wall, "per_run_fps": statistics.mean(per_run_fps), "pipeline_fps": pipeline_fps}
+            "fps": frames / wall, "per_run_fps": statistics.mean(per_run_fps), "pipeline_fps": pipeline_fps,
+            "run_walls_s": run_walls}
 
 
 def main() -> None:
@@ -63,7 +68,11 @@ def main() -> None:
     ap.add_argument("--detector", default="oracle")
     ap.add_argument("--tracker", default="particle")
     ap.add_argument("--ray", action="store_true", help="also run each worker count on a local Ray instance")
+    ap.add_argument("--cache", default="off", metavar="DIR|off", help="frame cache (default off)")
     args = ap.parse_args()
+    from harness.frame_cache import open_cache
+
+    cache = open_cache(args.cache, None)
 
     print(f"sweep throughput: {args.scenario} at 640x360, {args.seeds} runs x {args.frames} frames, "
           f"detector {args.detector}, tracker {args.tracker}; {os.cpu_count()} CPUs")
@@ -74,7 +83,7 @@ def main() -> None:
         tmp = Path(d)
         spec = write_spec(tmp, args)
         for executor, workers in configs:
-            r = bench(spec, tmp / f"{executor}{workers}", executor, workers)
+            r = bench(spec, tmp / f"{executor}{workers}", executor, workers, cache)
             print(f"{r['executor']:8s} {r['workers']:7d} {r['frames']:7d} {r['wall_s']:8.1f} {r['fps']:9.1f} "
                   f"{r['per_run_fps']:11.1f} {r['pipeline_fps']:12.1f}", flush=True)
     print("frames/s: aggregated end to end (simulate + render + pipeline + score + write, incl. worker start-up); "

@@ -42,7 +42,6 @@ tolerances absorb the small differences across machines and library builds
 from __future__ import annotations
 
 import fnmatch
-import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -52,6 +51,7 @@ from typing import Any
 from harness.output import write_json_atomic
 from harness.sweep.summary import flatten, is_deterministic
 from monorarp.errors import UserError
+from monorarp.readers import MAX_JSON_BYTES, parse_json, read_text
 
 VERSION = 1
 DIRECTIONS = ("lower_is_better", "higher_is_better", "two_sided")
@@ -136,21 +136,21 @@ class CheckRow:
 
 
 # --------------------------------------------------------------------- input
+def checked_exists(path: Path) -> bool:
+    try:
+        return path.exists()
+    except OSError as e:   # e.g. a name too long
+        raise CheckInputError(f"{str(path)[:200]}: cannot use this path ({e.strerror or e})") from None
+
+
 def _read_json(path: Path, what: str) -> Any:
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise CheckInputError(f"{path}: cannot read {what} ({e.strerror or e})") from None
-    try:
-        return json.loads(text)
-    except ValueError as e:
-        raise CheckInputError(f"{path}: {what} is not valid JSON ({e})") from None
+    return parse_json(read_text(path, what, CheckInputError, MAX_JSON_BYTES), path, what, CheckInputError)
 
 
 def load_results(path: str | Path) -> dict[str, RunResult]:
     """Runs of a sweep directory (``summary.json``) or of one run directory (``metrics.json``)."""
     path = Path(path)
-    if not path.exists():
+    if not checked_exists(path):
         raise CheckInputError(f"{path}: no such results directory")
     if path.is_file():
         raise CheckInputError(f"{path}: give a run directory (with metrics.json) or a sweep directory "
@@ -160,6 +160,9 @@ def load_results(path: str | Path) -> dict[str, RunResult]:
         runs = data.get("runs") if isinstance(data, dict) else None
         if not isinstance(runs, list) or not all(isinstance(r, dict) and "id" in r for r in runs):
             raise CheckInputError(f"{path / 'summary.json'}: not a sweep summary (no 'runs' list of runs with ids)")
+        bad = next((i for i, r in enumerate(runs) if not isinstance(r.get("metrics") or {}, dict)), None)
+        if bad is not None:
+            raise CheckInputError(f"{path / 'summary.json'}: runs.{bad}.metrics: must be an object {{name: value}}")
         return {str(r["id"]): RunResult(str(r.get("status", "ok")), r.get("error"),
                                         dict(r.get("metrics") or {})) for r in runs}
     if (path / "metrics.json").is_file():
@@ -231,7 +234,7 @@ def parse_baseline(data: Any, source: str | Path) -> dict:
 
 def load_baseline(path: str | Path) -> dict:
     path = Path(path)
-    if not path.is_file():
+    if not checked_exists(path) or not path.is_file():
         raise CheckInputError(f"{path}: no such baseline file")
     return parse_baseline(_read_json(path, "baseline"), path)
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import yaml
 from pydantic import ValidationError
+
+from monorarp.readers import parse_yaml, read_text
 
 
 def format_validation_error(source: str | Path, err: ValidationError) -> str:
@@ -17,21 +18,24 @@ def format_validation_error(source: str | Path, err: ValidationError) -> str:
     if first["type"] not in ("value_error", "missing", "extra_forbidden") and "input" in first:
         given = first["input"]
         if isinstance(given, (int, float, str, bool)) or given is None:
-            msg += f" (got {given!r})"
+            msg += f" (got {_shown(given)})"
     more = f" (and {err.error_count() - 1} more)" if err.error_count() > 1 else ""
     return f"{source}: {loc + ': ' if loc else ''}{msg}{more}"
 
 
+def _shown(value: Any, limit: int = 80) -> str:
+    """``repr(value)``, shortened (a 100 kB string or an int too long to print stays one short line)."""
+    try:
+        text = repr(value)
+    except ValueError:   # int beyond sys.get_int_max_str_digits()
+        return f"<integer of {value.bit_length()} bits>"
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 def read_yaml(path: str | Path, error: type[Exception], what: str) -> Any:
-    """The parsed content of YAML file ``path``; unreadable or malformed files raise ``error``."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise error(f"{path}: cannot read {what} ({e.strerror or e})") from None
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark else ""
-        raise error(f"{path}: invalid YAML{where}: {getattr(e, 'problem', e)}") from None
+    """The parsed content of YAML file ``path``; unreadable or malformed files raise ``error``.
+
+    Size, encoding, nesting depth, alias expansion and tags are limited by
+    :mod:`monorarp.readers` (one line for whatever the file holds).
+    """
+    return parse_yaml(read_text(path, what, error), path, error)

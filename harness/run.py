@@ -31,7 +31,7 @@ import time
 from collections.abc import Iterator, Mapping
 from contextlib import ExitStack
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from harness.scenario import Scenario
 from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows, jsonable, write_frame_csv, write_metrics
@@ -41,6 +41,9 @@ from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
 from monorarp.registry import build, get_factory, instantiate
 from monorarp.types import Frame, FrameResult, ObjectState, RiskEstimate
+
+if TYPE_CHECKING:
+    from harness.frame_cache import FrameCache
 
 METRICS_NAME = "metrics.json"
 PER_OBJECT_NAME = "per_object.csv"
@@ -153,12 +156,15 @@ def _chain(first, rest):
 def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, n_frames: int | None = None,
                  out_dir: str | Path | None = None, threaded: bool = False, annotate: bool = True,
                  eval_config: EvalConfig = EvalConfig(), write_frames: bool = True,
-                 preload_bytes: int = PRELOAD_BYTES, gps_speed: bool = False) -> dict:
+                 preload_bytes: int = PRELOAD_BYTES, gps_speed: bool = False,
+                 cache: FrameCache | None = None) -> dict:
     """Simulate, render, run the pipeline and score ``scenario``; returns the metrics dict (NaN kept).
 
     ``n_frames`` defaults to the scenario's duration x fps. With ``out_dir`` the
     files of the module docstring are written atomically. ``gps_speed``: a risk
     stage that takes the ego speed gets the true one on frames without an estimate.
+    ``cache``: frames and truth come from this :class:`~harness.frame_cache.FrameCache`
+    (rendered and stored on a miss); the outputs are identical either way.
     """
     cfg = pipeline_config if isinstance(pipeline_config, PipelineConfig) else \
         PipelineConfig.model_validate(pipeline_config)
@@ -171,7 +177,7 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
     if gps_speed and _takes_ego_speed(pipeline.risk):
         pipeline.risk = GpsFallbackRisk(pipeline.risk, true_speeds)
     n = scenario.n_frames if n_frames is None else int(n_frames)
-    source = rendered_frames(scenario, n)
+    source = rendered_frames(scenario, n) if cache is None else cache.frames(scenario, n)
     preload = n * camera.width * camera.height * 3 <= preload_bytes
     run_info = {"scenario": scenario.name, "seed": scenario.seed, "fps_scenario": scenario.fps,
                 "camera": {"width": camera.width, "height": camera.height}, **describe(cfg),

@@ -169,6 +169,8 @@ class Camera(_Model):
 
     @model_validator(mode="after")
     def _possible(self) -> "Camera":
+        if self.focal_px is None and self.hfov_deg is None:
+            raise ValueError("give focal_px or hfov_deg (both are null)")
         try:
             self.model()
         except CameraError as e:

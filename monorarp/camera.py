@@ -181,7 +181,7 @@ class CameraModel:
         except CameraError as e:
             msg = str(e)
             raise CameraError(msg if msg.startswith(source) else f"{source}: {msg}") from None
-        except (TypeError, ValueError) as e:
+        except (TypeError, ValueError, OverflowError) as e:   # OverflowError: int(inf)
             raise CameraError(f"{source}: {e}") from None
 
     @classmethod
@@ -214,20 +214,17 @@ class CameraModel:
     @classmethod
     def load(cls, path: str | Path) -> "CameraModel":
         """Read a camera from JSON (``camera.json``) or YAML."""
-        path = Path(path)
-        try:
-            text = path.read_text()
-        except OSError as e:
-            raise CameraError(f"{path}: cannot read camera file ({e.strerror})") from None
-        try:
-            if path.suffix.lower() in (".yaml", ".yml"):
-                import yaml
+        from monorarp.readers import parse_json, parse_yaml, read_text
 
-                data = yaml.safe_load(text)
-            else:
-                data = json.loads(text)
-        except Exception as e:  # noqa: BLE001 - any parse error is a user error here
-            raise CameraError(f"{path}: cannot parse camera file ({e})") from None
+        path = Path(path)
+        text = read_text(path, "camera file", CameraError)
+        if path.suffix.lower() not in (".yaml", ".yml"):
+            data = parse_json(text, path, "camera file", CameraError)
+        else:
+            try:
+                data = parse_yaml(text, path, CameraError)
+            except CameraError as e:
+                raise CameraError(f"{path}: cannot parse camera file ({str(e).removeprefix(f'{path}: ')})") from None
         if not isinstance(data, dict):
             raise CameraError(f"{path}: camera file must hold a mapping")
         return cls.from_dict(data, source=str(path))

@@ -91,7 +91,9 @@ def test_output_files(bench, capsys):
     assert res["config"]["detector"]["name"] == "oracle"
     assert res["config"]["frames_per_scenario"] == {"bench_test": N_FRAMES}
     for name, s in res["trackers"].items():
-        assert set(s) >= {"tracker_ms", "detector_ms", "mota", "idf1", "id_switches", "distance_rel_err_median"}
+        assert set(s) >= {"tracker_ms", "detector_ms", "mota", "idf1", "hota", "deta", "assa", "id_switches",
+                          "distance_rel_err_median"}
+        assert 0.0 <= s["hota"] <= 1.0
         assert s["tracker_ms"]["mean"] > 0 and s["tracker_ms"]["p95"] >= 0
         assert s["detector_ms"] == res["detector_ms"]                   # one shared detector figure
         assert isinstance(s["id_switches"], int)
@@ -104,7 +106,7 @@ def test_output_files(bench, capsys):
         assert res["trackers"]["rec_a"][key] == res["trackers"]["particle"][key]
     assert res["per_scenario"]["bench_test"]["trackers"]["kcf"]["mota"] is not None
     md = (out / "trackers.md").read_text()
-    assert "TABLE III" in md and "| MOTA |" in md
+    assert "TABLE III" in md and "| MOTA |" in md and "| HOTA |" in md
     assert all(f"| {n} |" in md for n in res["trackers"])
 
 

@@ -2,8 +2,10 @@
 
 Every tracker sees identical frames and identical detections:
 
-1. each scenario is simulated and rendered once (:func:`harness.run.rendered_frames`);
-   its frames (made read-only) and ground truths are kept in memory;
+1. each scenario is simulated and rendered once (:func:`harness.run.rendered_frames`), or read
+   from the frame cache (:mod:`harness.frame_cache`, shared with ``monorarp sweep``) when an
+   earlier benchmark or sweep rendered the same instance; its frames (made read-only) and
+   ground truths are kept in memory;
 2. the detector runs once per frame; its detections and its time are cached;
 3. each tracker then runs over the cached frames and detections, followed by
    the same state estimator and risk estimator (fresh instances per tracker),
@@ -22,7 +24,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -34,6 +36,9 @@ from monorarp.errors import UserError
 from monorarp.pipeline import ComponentConfig, PipelineConfig
 from monorarp.registry import build, get_factory
 from monorarp.types import Detection, Frame, FrameResult
+
+if TYPE_CHECKING:
+    from harness.frame_cache import FrameCache
 
 DEFAULT_TRACKERS = ("particle", "kcf", "csrt", "mosse", "medianflow", "sort", "bytetrack")
 DEFAULT_SCENARIOS = ("scenarios/highway_cruise.yaml", "scenarios/cut_in.yaml")
@@ -83,15 +88,18 @@ def build_detector(detector: ComponentConfig, camera: CameraModel) -> Any:
 
 
 def cache_sequence(scenario: Scenario, detector: Any, n_frames: int, name: str | None = None,
-                   log: Callable[[str], None] | None = None) -> CachedSequence:
-    """Render ``n_frames`` of ``scenario`` and run ``detector`` once on each frame (timed)."""
+                   log: Callable[[str], None] | None = None, cache: FrameCache | None = None) -> CachedSequence:
+    """Render ``n_frames`` of ``scenario`` (or read them from ``cache``) and run ``detector`` once on each
+    frame (timed)."""
     from harness.run import rendered_frames
 
     if hasattr(detector, "reset"):
         detector.reset()
     set_truth = getattr(detector, "set_truth", None)       # the oracle detector reads the truth
     frames, truths, dets, ms = [], [], [], []
-    for frame, truth in rendered_frames(scenario, n_frames):
+    source = rendered_frames(scenario, n_frames) if cache is None else cache.frames(scenario, n_frames)
+    how = "rendered" if cache is None or cache.last == "rendered" else "read from the frame cache"
+    for frame, truth in source:
         frame.image.setflags(write=False)                  # no tracker may alter what the next one sees
         if set_truth is not None:
             set_truth(truth, frame.image)
@@ -102,7 +110,7 @@ def cache_sequence(scenario: Scenario, detector: Any, n_frames: int, name: str |
         truths.append(truth)
         dets.append(d)
     if log:
-        log(f"{name or scenario.name}: {len(frames)} frames rendered, detector {np.mean(ms) if ms else float('nan'):.2f} ms/frame")
+        log(f"{name or scenario.name}: {len(frames)} frames {how}, detector {np.mean(ms) if ms else float('nan'):.2f} ms/frame")
     return CachedSequence(name=name or scenario.name, camera=scenario.camera.model(), frames=frames,
                           truths=truths, detections=dets, detector_ms=np.asarray(ms, dtype=float))
 
@@ -151,17 +159,27 @@ def pooled_tracking(tracking: Sequence[Mapping]) -> dict[str, float | int]:
     As motmetrics' "OVERALL" row: MOTA = 1 - (misses + FP + switches) / objects;
     IDF1 = 2 IDTP / (objects + predictions), with IDTP = IDR x objects and
     predictions = matches + FP = objects - misses + FP (each sequence's
-    ``tracking`` section of ``metrics.json``).
+    ``tracking`` section of ``metrics.json``). HOTA, DetA and AssA are pooled as TrackEval
+    combines sequences (:func:`harness.scoring.hota.combine`) from each section's
+    ``hota_by_alpha``; NaN when a section lacks it.
     """
+    from harness.scoring.hota import HotaResult, combine
+
     obj = sum(int(t["objects"]) for t in tracking)
     fp = sum(int(t["false_positives"]) for t in tracking)
     miss = sum(int(t["misses"]) for t in tracking)
     sw = sum(int(t["id_switches"]) for t in tracking)
     idtp = sum(float(t["idr"]) * int(t["objects"]) for t in tracking if int(t["objects"]) > 0)
     preds = obj - miss + fp
-    return {"mota": 1.0 - (miss + fp + sw) / obj if obj else float("nan"),
-            "idf1": 2.0 * idtp / (obj + preds) if obj + preds else float("nan"),
-            "id_switches": sw, "false_positives": fp, "misses": miss, "objects": obj}
+    nan = float("nan")
+    hota = {"hota": nan, "deta": nan, "assa": nan}
+    if tracking and all(t.get("hota_by_alpha") for t in tracking):
+        pooled = combine([HotaResult.from_dict(t["hota_by_alpha"]) for t in tracking])
+        if (pooled.tp + pooled.fn + pooled.fp).any():
+            hota = {k: v for k, v in pooled.summary().items() if k in hota}
+    return {"mota": 1.0 - (miss + fp + sw) / obj if obj else nan,
+            "idf1": 2.0 * idtp / (obj + preds) if obj + preds else nan,
+            **hota, "id_switches": sw, "false_positives": fp, "misses": miss, "objects": obj}
 
 
 def _ms_stats(x: np.ndarray) -> dict[str, float]:
@@ -189,6 +207,8 @@ class BenchConfig:
     state: ComponentConfig = field(default_factory=lambda: PipelineConfig.model_fields["state"].default)
     risk: ComponentConfig = field(default_factory=lambda: PipelineConfig.model_fields["risk"].default)
     eval: EvalConfig = EvalConfig()
+    #: frame cache (harness.frame_cache), or a callable giving it once the inputs are checked; None: render
+    cache: FrameCache | Callable[[], FrameCache | None] | None = None
 
 
 def _load_scenarios(paths: Sequence[str | Path]) -> list[tuple[str, Scenario]]:
@@ -216,13 +236,14 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
     for kind, comp in (("state", config.state), ("risk", config.risk)):
         get_factory(kind, comp.name)
     detectors = [build_detector(config.detector, sc.camera.model()) for _, sc in scenarios]
+    cache = config.cache() if callable(config.cache) else config.cache
 
     per_tracker: dict[str, list[TrackerRun]] = {t: [] for t in trackers}
     per_scenario: dict[str, dict] = {}
     det_ms: list[np.ndarray] = []
     for (name, sc), detector in zip(scenarios, detectors):
         n = sc.n_frames if config.frames is None else min(int(config.frames), sc.n_frames)
-        seq = cache_sequence(sc, detector, n, name=name, log=log)
+        seq = cache_sequence(sc, detector, n, name=name, log=log, cache=cache)
         det_ms.append(seq.detector_ms)
         per_scenario[name] = {"frames": len(seq.frames), "detector_ms": _ms_stats(seq.detector_ms),
                               "detections": int(sum(len(d) for d in seq.detections)), "trackers": {}}
@@ -232,7 +253,7 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
             per_scenario[name]["trackers"][t] = _summary([run], seq.detector_ms, config.eval)
             if log:
                 s = per_scenario[name]["trackers"][t]
-                log(f"  {t:<11} {s['tracker_ms']['mean']:8.2f} ms  MOTA {s['mota']:.3f}  IDF1 {s['idf1']:.3f}")
+                log(f"  {t:<11} {s['tracker_ms']['mean']:8.2f} ms  MOTA {s['mota']:.3f}  IDF1 {s['idf1']:.3f}  HOTA {s['hota']:.3f}")
         del seq
     all_det_ms = np.concatenate(det_ms) if det_ms else np.empty(0)
     return {
@@ -255,15 +276,15 @@ def _f(v, fmt: str) -> str:
 def table_iii(result: Mapping) -> str:
     """The paper's Table III with accuracy added, as a Markdown table (also readable as plain text)."""
     head = ("| Tracker | tracker ms/frame (mean) | tracker ms (p95) | detector ms/frame | detector + tracker (s) "
-            "| MOTA | IDF1 | ID switches | distance error (median) | tracks/frame |")
+            "| MOTA | IDF1 | HOTA | ID switches | distance error (median) | tracks/frame |")
     lines = ["TABLE III: Tracker runtime and accuracy (identical frames and detections)", "", head,
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for name, s in result["trackers"].items():
         tm, dm = s["tracker_ms"]["mean"], s["detector_ms"]["mean"]
         total = None if tm is None or dm is None else (tm + dm) / 1e3
         lines.append(f"| {name} | {_f(tm, '{:.3f}')} | {_f(s['tracker_ms']['p95'], '{:.3f}')} | {_f(dm, '{:.3f}')} "
                      f"| {_f(total, '{:.4f}')} | {_f(s['mota'], '{:.3f}')} | {_f(s['idf1'], '{:.3f}')} "
-                     f"| {s['id_switches']} | {_f(None if s['distance_rel_err_median'] is None else 100 * s['distance_rel_err_median'], '{:.2f} %')} "
+                     f"| {_f(s.get('hota'), '{:.3f}')} | {s['id_switches']} | {_f(None if s['distance_rel_err_median'] is None else 100 * s['distance_rel_err_median'], '{:.2f} %')} "
                      f"| {_f(s.get('tracks_per_frame'), '{:.1f}')} |")
     p = result.get("paper_table_iii_s", PAPER_TABLE_III_S)
     cfg = result["config"]
@@ -271,17 +292,18 @@ def table_iii(result: Mapping) -> str:
     lines += ["", f"Paper (FasterRCNN, GTX 1070, 1080p): KCF tracker {p['kcf']:.4f} s; object detector + particle "
                   f"tracker {p['detector']:.4f} + {p['particle']:.4f} s. No accuracy: the paper had no ground truth.",
               f"Detector: {cfg['detector']['name']}; frames: {frames}. MOTA/IDF1/ID switches: motmetrics, IoU >= "
-              f"{cfg['scoring']['min_iou']:g}, pooled over scenarios. Distance error: median |d_y - d_long| / d_long "
+              f"{cfg['scoring']['min_iou']:g}; HOTA: mean over IoU thresholds 0.05..0.95 (TrackEval's); all pooled "
+              f"over scenarios. Distance error: median |d_y - d_long| / d_long "
               f"({cfg['state']['name']} state estimator) over matched counted objects within 0-80 m."]
     per = result.get("per_scenario", {})
     if len(per) > 1:
-        lines += ["", "Per scenario:", "", "| Scenario | Tracker | tracker ms (mean) | MOTA | IDF1 | ID switches "
-                  "| distance error (median) |", "|---|---|---:|---:|---:|---:|---:|"]
+        lines += ["", "Per scenario:", "", "| Scenario | Tracker | tracker ms (mean) | MOTA | IDF1 | HOTA | ID switches "
+                  "| distance error (median) |", "|---|---|---:|---:|---:|---:|---:|---:|"]
         for sc, v in per.items():
             for name, s in v["trackers"].items():
                 d = s["distance_rel_err_median"]
                 lines.append(f"| {sc} | {name} | {_f(s['tracker_ms']['mean'], '{:.3f}')} | {_f(s['mota'], '{:.3f}')} "
-                             f"| {_f(s['idf1'], '{:.3f}')} | {s['id_switches']} | "
+                             f"| {_f(s['idf1'], '{:.3f}')} | {_f(s.get('hota'), '{:.3f}')} | {s['id_switches']} | "
                              f"{_f(None if d is None else 100 * d, '{:.2f} %')} |")
     return "\n".join(lines)
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from harness.commands.cache_args import add_cache_arguments, cache_from_args
 from harness.commands.detector_args import add_detector_arguments, detector_config
 from monorarp.errors import UserError
 
@@ -35,6 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_detector_arguments(t)
     t.add_argument("--frames", type=int, default=DEFAULT_FRAMES, metavar="N",
                    help=f"frames per scenario, at most its duration x fps (default {DEFAULT_FRAMES})")
+    add_cache_arguments(t)
     t.add_argument("--out", type=Path, default=Path("runs") / "bench-trackers", metavar="DIR",
                    help="output directory (default: runs/bench-trackers; a previous benchmark there is replaced)")
     t.set_defaults(func=run_trackers)
@@ -51,6 +53,7 @@ def run_trackers(args: argparse.Namespace) -> int:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     cfg = BenchConfig(scenarios=scenarios, trackers=trackers, detector=detector_config(args),
                       frames=args.frames)
+    cfg.cache = lambda: cache_from_args(args)
     result = run_bench(cfg, out_dir=args.out, log=stderr_log)
     print(table_iii(result))
     print(f"\nwrote {args.out}/trackers.json and {args.out}/trackers.md")

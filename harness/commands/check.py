@@ -27,11 +27,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from harness.check import CheckInputError, compare, format_table, load_baseline, load_results, updated_baseline, write_baseline
+    from harness.check import (CheckInputError, checked_exists, compare, format_table, load_baseline, load_results,
+                               updated_baseline, write_baseline)
 
     results = load_results(args.results)
     if args.update:
-        old = load_baseline(args.baseline) if args.baseline.exists() else None
+        old = load_baseline(args.baseline) if checked_exists(args.baseline) else None
         failed = sorted(rid for rid, r in results.items() if r.status != "ok")
         if failed:
             print(f"check: not updating {args.baseline}: {len(failed)} run(s) failed: {', '.join(failed[:5])}"

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from harness.commands.cache_args import add_cache_arguments, cache_from_args
 from monorarp.errors import UserError
 
 
@@ -31,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", action="store_true",
                    help="skip runs already finished in DIR with the same parameters")
     p.add_argument("--videos", action="store_true", help="also write annotated.mp4 for every run (slower)")
+    add_cache_arguments(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -43,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
     if args.address is not None and args.executor != "ray":
         raise UserError("--address is only for --executor ray")
     res = run_sweep(args.spec, args.out, executor=args.executor, workers=args.workers, resume=args.resume,
-                    address=args.address, videos=args.videos, progress=not args.no_progress)
+                    address=args.address, videos=args.videos, progress=not args.no_progress,
+                    cache=lambda: cache_from_args(args))
     n = len(res.rows)
     ok = n - len(res.failed)
     skipped = f", {len(res.skipped)} skipped (already finished)" if res.skipped else ""

@@ -20,6 +20,8 @@ shifted by +0.5 (checked by the tests against ``cv2.projectPoints``).
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 import os
 import types
@@ -94,6 +96,68 @@ def _read_colour_only(self, scene, flags):
     return np.frombuffer(buf, dtype=np.uint8).reshape(height, width, ch)[::-1], None
 
 
+_draw_orders = itertools.count()
+
+
+def _add_mesh(scene: pyrender.Scene, mesh: pyrender.Mesh, pose: np.ndarray | None = None) -> pyrender.Node:
+    """``scene.add`` that records the node's insertion order (the tie-break of :func:`_sorted_mesh_nodes`)."""
+    node = scene.add(mesh, pose=pose)
+    node._draw_order = next(_draw_orders)
+    return node
+
+
+def _sorted_mesh_nodes(self, scene):
+    """Replacement for pyrender's draw order: far to near as pyrender does, ties in insertion order.
+
+    pyrender iterates a ``set`` of nodes, so nodes at the same distance (the road meshes,
+    all at the origin) were drawn in an order that changed from one renderer to the next;
+    where their depths tie (coplanar, or at range within depth precision) a pixel then
+    took either colour. A frame is now a pure function of its world state.
+    """
+    cam = scene.get_pose(scene.main_camera_node)[:3, 3]
+    nodes = sorted(scene.mesh_nodes, key=lambda n: getattr(n, "_draw_order", -1))
+    solid = [n for n in nodes if not n.mesh.is_transparent]
+    trans = [n for n in nodes if n.mesh.is_transparent]
+    far_first = lambda n: -np.linalg.norm(scene.get_pose(n)[:3, 3] - cam)  # noqa: E731
+    return sorted(solid, key=far_first) + sorted(trans, key=far_first)
+
+
+def _release(pr: pyrender.OffscreenRenderer) -> None:
+    """Free ``pr``'s GL context; the shared EGL display is terminated only by the last live renderer."""
+    global _live_renderers
+    _live_renderers -= 1
+    platform = pr._platform
+    if _live_renderers > 0 and getattr(platform, "_egl_display", None) is not None:
+        from OpenGL import EGL
+
+        platform.make_current()
+        pr._renderer.delete()
+        EGL.eglMakeCurrent(platform._egl_display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
+        EGL.eglDestroyContext(platform._egl_display, platform._egl_context)
+        platform._egl_context = platform._egl_display = None
+    else:
+        pr.delete()
+
+
+@functools.cache
+def gl_identity() -> str:
+    """``vendor | renderer | version`` of the OpenGL implementation this process renders with.
+
+    E.g. ``Mesa/X.org | llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core Profile) Mesa 22.3.6`` on this machine;
+    a GPU's EGL driver names the GPU. Read once per process from a 1x1 offscreen context
+    (about 0.1 s). Part of the frame-cache key: another rasteriser may colour edge pixels differently.
+    """
+    global _live_renderers
+    pr = pyrender.OffscreenRenderer(1, 1)
+    _live_renderers += 1
+    try:
+        pr._platform.make_current()
+        parts = [GL.glGetString(name) for name in (GL.GL_VENDOR, GL.GL_RENDERER, GL.GL_VERSION)]
+        return " | ".join(p.decode("utf-8", "replace") if isinstance(p, bytes) else str(p) for p in parts)
+    finally:
+        _release(pr)
+
+
 @dataclass
 class _Vehicle:
     node: pyrender.Node
@@ -119,7 +183,7 @@ class Renderer:
         self._material = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0))
         for tm in road.road_trimeshes(scenario.road).values():
             colors = shading.shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w, self._intensity)
-            self._scene.add(_flat_mesh(tm.vertices[tm.faces], colors, self._material))
+            _add_mesh(self._scene, _flat_mesh(tm.vertices[tm.faces], colors, self._material))
         c = self.camera
         self._cam = pyrender.IntrinsicsCamera(c.fx, c.fy, c.cx + PIXEL_CENTRE_SHIFT, c.cy + PIXEL_CENTRE_SHIFT,
                                               znear=ZNEAR_M, zfar=ZFAR_M)
@@ -130,25 +194,14 @@ class Renderer:
         _live_renderers += 1
         inner = self._pr._renderer
         inner._read_main_framebuffer = types.MethodType(_read_colour_only, inner)
+        inner._sorted_mesh_nodes = types.MethodType(_sorted_mesh_nodes, inner)
 
     # ----------------------------------------------------------------- lifecycle
     def close(self) -> None:
         """Free the GL context (other live renderers keep theirs)."""
-        global _live_renderers
         if self._pr is None:
             return
-        _live_renderers -= 1
-        platform = self._pr._platform
-        if _live_renderers > 0 and getattr(platform, "_egl_display", None) is not None:
-            from OpenGL import EGL
-
-            platform.make_current()
-            self._pr._renderer.delete()
-            EGL.eglMakeCurrent(platform._egl_display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
-            EGL.eglDestroyContext(platform._egl_display, platform._egl_context)
-            platform._egl_context = platform._egl_display = None
-        else:
-            self._pr.delete()
+        _release(self._pr)
         self._pr = None
 
     def __enter__(self) -> "Renderer":
@@ -181,7 +234,7 @@ class Renderer:
                 tm = meshes.vehicle_trimesh(v.length, v.width, meshes.vehicle_color(self._palette_seed, v.id))
                 entry = _Vehicle(None, dims, tm.vertices[tm.faces], tm.face_normals,
                                  tm.visual.face_colors[:, :3].astype(float), hbin)
-                entry.node = self._scene.add(self._vehicle_mesh(entry), pose=pose)
+                entry.node = _add_mesh(self._scene, self._vehicle_mesh(entry), pose=pose)
                 self._vehicles[v.id] = entry
             else:
                 if entry.heading_bin != hbin:

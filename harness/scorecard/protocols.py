@@ -242,7 +242,11 @@ def conflict_scenario(protocol: Protocol, t: Test, v_ego_kmh: float, gap: float 
         target.update(lane=side, lateral_offset_m=0.0, distance_m=float(gap))
         events.append({"type": "cut_in", "vehicle": "target", "at_s": t.cut_in_at_s, "gap_m": float(gap)})
         shown.update(gap_m=gap, side=side)
-        tc = None if t.kind == "pass_by" else t.cut_in_at_s + contact_time(gap, v_ego, v_tgt, 0.0, 0.0)
+        tc = None if t.kind == "pass_by" else contact_time(gap, v_ego, v_tgt, 0.0, 0.0)
+        if t.kind != "pass_by" and tc is None:   # closing too slowly: no contact within contact_time's 60 s
+            raise ProtocolError(f"ego_speed_kmh: at {v_ego / KMH:g} km/h the ego does not reach a target at "
+                                f"{v_tgt / KMH:g} km/h {gap:g} m ahead within 60 s of the cut-in: no conflict")
+        tc = None if tc is None else t.cut_in_at_s + tc
     scn["vehicles"] = [target]
     scn["events"] = events
     lanes = tuple(la for la in (-1, 1) if not (t.kind != "rear_end" and la == target["lane"]))
@@ -292,7 +296,10 @@ def expand_protocol(protocol: Protocol, source: str | Path, trials: int | None =
                                         + ([f"dec{_fmt(decel)}"] if decel else []) + [f"off{_fmt(off)}"])
                         for trial in range(n):
                             seed = 1000 * trial + k
-                            scn, shown = conflict_scenario(protocol, t, v, gap, decel, off, trial, seed)
+                            try:
+                                scn, shown = conflict_scenario(protocol, t, v, gap, decel, off, trial, seed)
+                            except ProtocolError as e:   # names the field; add the file and the test
+                                raise ProtocolError(f"{source}: tests.{ti}.{e}") from None
                             out.append(Trial(suite=protocol.suite, test=t.test, kind=t.kind, key=key, trial=trial,
                                              ego_speed_mps=v * KMH, target_speed_mps=t.target_speed_kmh * KMH,
                                              params=shown, required_ttc_s=t.required_ttc_s,

@@ -89,7 +89,11 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
         raise ProtocolError(f"--frames: must be >= 1, got {opts.frames}")
     trials: list[Trial] = []
     for path in protocol_paths(opts):
-        if not path.is_file():
+        try:
+            is_file = path.is_file()
+        except OSError as e:   # e.g. a name too long
+            raise ProtocolError(f"{str(path)[:200]}: cannot read protocol ({e.strerror or e})") from None
+        if not is_file:
             raise ProtocolError(f"{path}: no such protocol file")
         trials += expand_protocol(load_protocol(path), path, opts.trials)
     tasks, built = [], {}

@@ -208,6 +208,10 @@ def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[Fram
                 "unique_objects": int(m["num_unique_objects"]), "fragmentations": int(m["num_fragmentations"]),
                 "mostly_tracked": int(m["mostly_tracked"]), "partially_tracked": int(m["partially_tracked"]),
                 "mostly_lost": int(m["mostly_lost"]), "precision": m["precision"], "recall": m["recall"]}
+    h = mot.hota_result()
+    nothing = not (h.tp + h.fn + h.fp).any()     # no counted object and no track: null, as MOTA (TrackEval says 0)
+    tracking.update({k: NAN if nothing else v for k, v in h.summary().items() if k in ("hota", "deta", "assa", "loca")})
+    tracking["hota_by_alpha"] = h.to_dict()      # per-threshold statistics: sequences combine exactly (hota.combine)
     return detection, tracking
 
 

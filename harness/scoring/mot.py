@@ -15,6 +15,10 @@ which does its own CLEAR-MOT matching with identity continuity.
 
 The distance matrix is computed here: motmetrics 1.4's ``distances.iou_matrix``
 calls ``np.asfarray``, removed in numpy 2.
+
+HOTA (:mod:`harness.scoring.hota`, motmetrics has none) sees the same frames: the
+counted objects and the tracks left after the ignore rule, with their full IoU
+matrix as the similarity (HOTA applies its own thresholds, 0.05 .. 0.95).
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from collections.abc import Sequence
 import motmetrics as mm
 import numpy as np
 
+from harness.scoring.hota import HotaAccumulator, HotaResult
 from harness.scoring.match import MIN_IOU, as_boxes, iou_matrix, split_ignored
 
 METRICS = ("num_frames", "mota", "motp", "idf1", "idp", "idr", "num_switches", "num_false_positives",
@@ -37,6 +42,7 @@ class MotScorer:
     def __init__(self, min_iou: float = MIN_IOU) -> None:
         self.min_iou = min_iou
         self.acc = mm.MOTAccumulator(auto_id=False)
+        self.hota = HotaAccumulator()
         self._frame = 0
 
     def update(self, gt_ids: Sequence[int], gt_boxes, counted: Sequence[bool],
@@ -57,6 +63,7 @@ class MotScorer:
         dist = np.where(iou >= self.min_iou, 1.0 - iou, np.nan)
         fid = self._frame if frame is None else int(frame)
         self.acc.update(g_ids, h_ids, dist, frameid=fid)
+        self.hota.update(g_ids, h_ids, iou)
         self._frame = fid + 1
 
     def compute(self) -> dict[str, float]:
@@ -64,3 +71,7 @@ class MotScorer:
         mh = mm.metrics.create()
         df = mh.compute(self.acc, metrics=list(METRICS), name="run")
         return {k: float(df.loc["run", k]) for k in METRICS}
+
+    def hota_result(self) -> HotaResult:
+        """HOTA of the frames fed so far (:func:`harness.scoring.hota.hota`)."""
+        return self.hota.compute()

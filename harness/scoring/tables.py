@@ -70,7 +70,9 @@ def summary_table(metrics: Mapping) -> str:
             line += f"; 1/TTC baseline AUROC {_num(b['auroc'], '{:.3f}')}, Brier {_num(b['brier'], '{:.3f}')}"
         out.append(line)
     t, det = metrics["tracking"], metrics["detection"]
-    out.append(f"tracking: MOTA {_num(t['mota'], '{:.3f}')}, IDF1 {_num(t['idf1'], '{:.3f}')}, id switches "
+    hota = f", HOTA {_num(t['hota'], '{:.3f}')} (DetA {_num(t['deta'], '{:.3f}')}, AssA {_num(t['assa'], '{:.3f}')})" \
+        if "hota" in t else ""
+    out.append(f"tracking: MOTA {_num(t['mota'], '{:.3f}')}, IDF1 {_num(t['idf1'], '{:.3f}')}{hota}, id switches "
                f"{t['id_switches']}, FP {t['false_positives']}, misses {t['misses']} of {t['objects']}")
     out.append(f"detection @IoU {det['min_iou']:g}: precision {_num(det['precision'], '{:.3f}')}, recall "
                f"{_num(det['recall'], '{:.3f}')}")

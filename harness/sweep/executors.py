@@ -12,6 +12,11 @@
 
 Every executor gives the same metrics: a run is a pure function of its task.
 A worker process that dies (segfault, OOM) fails its run, not the sweep.
+
+With a frame cache (:mod:`harness.frame_cache`), the parallel executors hand out
+tasks through :class:`RenderOnceQueue`: the first run of each scenario instance
+renders it, the runs sharing its frames start only when it has finished (and
+read them from the cache); meanwhile the other workers render other instances.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import socket
+from collections import deque
 from collections.abc import Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
@@ -44,6 +50,45 @@ class Executor(Protocol):
 def _record_crash(task: RunTask, runs_dir: Path, error: str) -> RunOutcome:
     worker.write_run_files(runs_dir, task.id, worker.failed_outcome_files(task, error))
     return RunOutcome(task.id, "failed", error)
+
+
+class RenderOnceQueue:
+    """Tasks in an order that renders each scenario instance once (:meth:`RunTask.frames_key`).
+
+    The first task of an instance (its *leader*) is ready at once; the others become ready
+    when it has finished (:meth:`done`), and are handed out before further leaders, so that
+    an instance's entry is used while it is fresh in the cache. Tasks without a key (no
+    cache, invalid scenario) are leaders of their own. Expansion order otherwise.
+    """
+
+    def __init__(self, tasks: Sequence[RunTask]) -> None:
+        self._leaders: deque[RunTask] = deque()
+        self._followers: deque[RunTask] = deque()
+        self._waiting: dict[str, list[RunTask]] = {}
+        self._group: dict[str, str] = {}            # leader id -> its key
+        for t in tasks:
+            key = t.frames_key()
+            if key is None:
+                self._leaders.append(t)
+            elif key in self._waiting:
+                self._waiting[key].append(t)
+            else:
+                self._waiting[key] = []
+                self._group[t.id] = key
+                self._leaders.append(t)
+        self.grouped = any(self._waiting.values())
+
+    def next(self) -> RunTask | None:
+        """The next ready task, or None (none ready now)."""
+        if self._followers:
+            return self._followers.popleft()
+        return self._leaders.popleft() if self._leaders else None
+
+    def done(self, task: RunTask) -> None:
+        """``task`` finished (whatever its outcome): the tasks that share its frames become ready."""
+        key = self._group.pop(task.id, None)
+        if key is not None:
+            self._followers.extend(self._waiting.pop(key))
 
 
 # -------------------------------------------------------------------- local
@@ -82,18 +127,34 @@ class ProcessExecutor:
 
     def run(self, tasks: Sequence[RunTask], runs_dir: Path) -> Iterator[RunOutcome]:
         threads = max(1, (os.cpu_count() or 1) // self.workers)
+        queue = RenderOnceQueue(tasks)
+        window = 2 * self.workers if queue.grouped else max(1, len(tasks))   # tasks in the pool at a time
         with ProcessPoolExecutor(max_workers=self.workers, mp_context=_mp_context(),
                                  initializer=_init_process, initargs=(threads,)) as pool:
-            pending: dict[Future, RunTask] = {pool.submit(worker.execute, t, str(runs_dir)): t for t in tasks}
+            pending: dict[Future, RunTask] = {}
+
+            def fill() -> list[RunOutcome]:
+                crashed = []
+                while len(pending) < window and (task := queue.next()) is not None:
+                    try:
+                        pending[pool.submit(worker.execute, task, str(runs_dir))] = task
+                    except Exception as e:  # noqa: BLE001 - the pool broke (a worker died)
+                        queue.done(task)
+                        crashed.append(_record_crash(task, runs_dir, f"worker failed: {type(e).__name__}: {e}"))
+                return crashed
+
             try:
+                yield from fill()
                 while pending:
                     done, _ = wait(pending, return_when=FIRST_COMPLETED)
                     for fut in sorted(done, key=lambda f: pending[f].index):
                         task = pending.pop(fut)
+                        queue.done(task)
                         try:
                             yield fut.result()
                         except Exception as e:  # noqa: BLE001 - worker died (BrokenProcessPool) etc.
                             yield _record_crash(task, runs_dir, f"worker failed: {type(e).__name__}: {e}")
+                    yield from fill()
             finally:
                 for fut in pending:
                     fut.cancel()
@@ -220,11 +281,19 @@ class RayExecutor:
             self.start()
         try:
             remote = ray.remote(num_cpus=1, max_retries=0)(worker.execute_detached)
-            pending = {remote.remote(t): t for t in tasks}
-            while pending:
+            queue = RenderOnceQueue(tasks)
+            cpus = int(ray.cluster_resources().get("CPU", self.workers)) if queue.grouped else 0
+            window = 2 * max(self.workers, cpus) if queue.grouped else max(1, len(tasks))
+            pending: dict = {}
+            while True:
+                while len(pending) < window and (task := queue.next()) is not None:
+                    pending[remote.remote(task)] = task
+                if not pending:
+                    break
                 done, _ = ray.wait(list(pending), num_returns=1)
                 for ref in done:
                     task = pending.pop(ref)
+                    queue.done(task)
                     try:
                         outcome, files = ray.get(ref)
                     except Exception as e:  # noqa: BLE001 - worker crashed / node lost

@@ -21,6 +21,7 @@ import copy
 import hashlib
 import inspect
 import itertools
+import json
 import math
 import re
 from dataclasses import asdict, dataclass, field
@@ -51,13 +52,22 @@ class RunTask:
     warning_threshold_s: float
     annotate: bool = False
     error: str | None = None           # expansion-time error: the run is recorded as failed, never executed
+    cache_dir: str | None = None       # frame cache (harness.frame_cache); not a parameter: same metrics without
+    cache_max_bytes: int | None = None
 
     def params(self) -> dict:
         """Everything that determines this run's metrics (stored in ``run.json``, compared on resume)."""
         d = asdict(self)
-        for k in ("index", "error"):
+        for k in ("index", "error", "cache_dir", "cache_max_bytes"):
             d.pop(k)
         return d
+
+    def frames_key(self) -> str | None:
+        """Runs with the same key render the same frames (scenario mapping and frame cap); None: this run renders
+        nothing, or has no frame cache to share them through."""
+        if self.cache_dir is None or self.scenario is None or self.error is not None:
+            return None
+        return json.dumps([self.scenario, self.frames], sort_keys=True)
 
 
 @dataclass

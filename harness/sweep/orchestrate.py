@@ -13,8 +13,9 @@ import json
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from harness.output import OutputError
 from harness.sweep.executors import Executor, make_executor
@@ -22,6 +23,9 @@ from harness.sweep.expand import Expansion, RunTask, load_and_expand
 from harness.sweep.report import render_report
 from harness.sweep.summary import collect_rows, write_summary, write_text_atomic
 from harness.sweep.worker import METRICS_JSON, RUN_JSON, RunOutcome
+
+if TYPE_CHECKING:
+    from harness.frame_cache import FrameCache
 
 RUNS = "runs"
 REPORT_HTML = "report.html"
@@ -83,12 +87,21 @@ def _progress(total: int, enabled: bool):
 
 def run_sweep(spec_path: str | Path, out: str | Path, *, executor: str = "local", workers: int = 1,
               resume: bool = False, address: str | None = None, videos: bool = False, progress: bool = True,
-              make: Callable[..., Executor] = make_executor) -> SweepResult:
-    """Run a sweep; raises :class:`~monorarp.errors.UserError` (nothing run) for a bad spec, output or executor."""
+              make: Callable[..., Executor] = make_executor,
+              cache: FrameCache | Callable[[], FrameCache | None] | None = None) -> SweepResult:
+    """Run a sweep; raises :class:`~monorarp.errors.UserError` (nothing run) for a bad spec, output or executor.
+
+    ``cache``: the frame cache every run reads and fills (or a callable giving it, called once the spec
+    has been checked); None: every run renders its own frames.
+    """
     t0 = time.perf_counter()
     out = Path(out)
     ex = make(executor, workers, address)          # unreachable Ray address etc. fails here, in seconds
     expansion = load_and_expand(spec_path, annotate=videos)
+    cache = cache() if callable(cache) else cache   # an unusable cache directory fails here, before any run
+    if cache is not None:
+        expansion.tasks = [replace(t, cache_dir=str(cache.root), cache_max_bytes=cache.max_bytes)
+                           for t in expansion.tasks]
     getattr(ex, "start", lambda: None)()         # e.g. connect to Ray, before DIR is touched
     try:
         return _run(ex, expansion, spec_path, out, resume, progress, t0)

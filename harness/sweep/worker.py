@@ -60,8 +60,14 @@ def run_into(task: RunTask, out: Path) -> RunOutcome:
 
             scenario = parse_scenario(task.scenario, task.scenario_file)
             n = scenario.n_frames if task.frames is None else min(task.frames, scenario.n_frames)
+            extra = {}
+            if task.cache_dir is not None:
+                from harness.frame_cache import FrameCache
+
+                extra["cache"] = FrameCache(task.cache_dir, task.cache_max_bytes)
             hrun.run_scenario(scenario, task.pipeline, n_frames=n, out_dir=out, annotate=task.annotate,
-                              write_frames=False, eval_config=EvalConfig(warning_threshold_s=task.warning_threshold_s))
+                              write_frames=False, eval_config=EvalConfig(warning_threshold_s=task.warning_threshold_s),
+                              **extra)
             if not (out / METRICS_JSON).is_file():
                 raise RuntimeError("the run finished without writing metrics.json")
         except Exception as e:  # noqa: BLE001 - recorded; the sweep goes on

@@ -35,7 +35,6 @@ Without a camera the detector runs the full view only, unless
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,16 +64,26 @@ class CenterNetMeta:
 
     @classmethod
     def load(cls, model_path: Path) -> "CenterNetMeta":
+        from monorarp.readers import parse_json, read_text
+
         p = model_path.with_suffix(".json")
         if not p.is_file():
             return cls()
+        d = parse_json(read_text(p, "detector metadata", ModelError, 1 << 20), p, "detector metadata", ModelError)
         try:
-            d = json.loads(p.read_text())
-            return cls(stride=int(d.get("stride", 4)), score_threshold=float(d.get("score_threshold", 0.3)),
+            meta = cls(stride=int(d.get("stride", 4)), score_threshold=float(d.get("score_threshold", 0.3)),
                        pad_value=int(d.get("pad_value", 114)), label=str(d.get("label", "car")),
                        max_detections=int(d.get("max_detections", 100)))
-        except (OSError, ValueError, TypeError, AttributeError) as e:
+        except (ValueError, TypeError, AttributeError, OverflowError) as e:
             raise ModelError(f"{p}: unreadable detector metadata ({e})") from None
+        bad = [f"{k} {v!r} (want {want})" for k, v, ok, want in (
+            ("stride", meta.stride, 1 <= meta.stride <= 64, "1..64"),
+            ("score_threshold", meta.score_threshold, 0 <= meta.score_threshold <= 1, "0..1"),
+            ("pad_value", meta.pad_value, 0 <= meta.pad_value <= 255, "0..255"),
+            ("max_detections", meta.max_detections, 1 <= meta.max_detections <= 100_000, "1..100000")) if not ok]
+        if bad:
+            raise ModelError(f"{p}: invalid detector metadata: {', '.join(bad)}")
+        return meta
 
 
 def is_centernet_layout(session) -> bool:

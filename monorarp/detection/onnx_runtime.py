@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,8 +30,11 @@ def open_session(path: str | Path, intra_op_num_threads: int = 1):
     import onnxruntime as ort
 
     path = Path(path)
-    if not path.is_file():
-        raise ModelError(f"{path}: model file not found" if not path.exists() else f"{path}: not a regular file")
+    try:
+        if not path.is_file():
+            raise ModelError(f"{path}: model file not found" if not path.exists() else f"{path}: not a regular file")
+    except OSError as e:   # e.g. a name too long
+        raise ModelError(f"{str(path)[:200]}: cannot open model file ({e.strerror or e})") from None
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = int(intra_op_num_threads)
     opts.inter_op_num_threads = 1
@@ -37,7 +42,10 @@ def open_session(path: str | Path, intra_op_num_threads: int = 1):
     opts.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
     opts.log_severity_level = 3
     try:
-        return ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
+        # onnxruntime prints its provider fallback ("EP Error ... Falling back") to stdout: the reason
+        # comes back in the exception, so keep stdout clean.
+        with contextlib.redirect_stdout(io.StringIO()):
+            return ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
     except PermissionError:
         raise ModelError(f"{path}: cannot read model file (permission denied)") from None
     except Exception as e:  # noqa: BLE001 - onnxruntime raises its own exception types

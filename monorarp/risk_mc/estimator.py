@@ -74,12 +74,25 @@ from monorarp.risk_mc.scene import Geometry, Noise, lane_of, lane_range, road_po
 from monorarp.types import ObjectState, RiskEstimate
 
 FALLBACK_EGO_SPEED_MPS = 25.0
+#: A state outside these bounds (or not finite) is not simulated; its TTC is None. No vehicle a dashcam
+#: detects is this far ahead, to the side or this fast, and such an estimate (a box at the horizon row)
+#: would size the rollouts' lane tables, which grow with the lanes spanned, or overflow them.
+MAX_RANGE_M = 1000.0
+MAX_LATERAL_M = 100.0
+MAX_SPEED_MPS = 150.0
 _EGO_KEY = -1
 BACKENDS = ("auto", "numba", "numpy")
 
 
 class MonteCarloConfigError(UserError, ValueError):
     """A bad setting of :class:`MonteCarloRisk` (names the setting, the value and the reason)."""
+
+
+def usable_state(s: ObjectState) -> bool:
+    """Can ``s`` enter the rollouts? Finite and within the bounds above."""
+    vals = (s.d_x, s.d_y, s.v_x, s.v_y)
+    return (all(math.isfinite(v) for v in vals) and abs(s.d_y) <= MAX_RANGE_M and abs(s.d_x) <= MAX_LATERAL_M
+            and abs(s.v_x) <= MAX_SPEED_MPS and abs(s.v_y) <= MAX_SPEED_MPS)
 
 
 def resolve_backend(backend: str) -> str:
@@ -194,7 +207,7 @@ class MonteCarloRisk:
     def _ego_speed(self, ego_speed: float | None) -> float:
         for value, source in ((ego_speed, "argument"), (self._fed_ego_speed, "fed"),
                               (self.ego_speed_mps, "configured")):
-            if value is not None and math.isfinite(value):
+            if value is not None and math.isfinite(value) and value <= MAX_SPEED_MPS:
                 self.ego_speed_source = source
                 return max(float(value), 0.0)
         self.ego_speed_source = "fallback"
@@ -211,8 +224,9 @@ class MonteCarloRisk:
     # ------------------------------------------------------------------- scene
     @staticmethod
     def simulated_ids(states: dict[int, ObjectState]) -> list[int]:
-        """Track ids that enter the rollouts: all, or the ``MAX_VEHICLES - 1`` nearest (rollout limit)."""
-        ids = sorted(states)
+        """Track ids that enter the rollouts: all with a usable state (finite, within :data:`MAX_RANGE_M`,
+        :data:`MAX_LATERAL_M`, :data:`MAX_SPEED_MPS`), or the ``MAX_VEHICLES - 1`` nearest (rollout limit)."""
+        ids = sorted(i for i, s in states.items() if usable_state(s))
         if len(ids) < MAX_VEHICLES:
             return ids
         near = sorted(ids, key=lambda i: (math.hypot(states[i].d_x, states[i].d_y), i))

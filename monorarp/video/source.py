@@ -65,7 +65,12 @@ def parse_input(spec: str | int | Path) -> str | int:
     if isinstance(spec, int):
         return spec
     s = str(spec)
-    return int(s) if re.fullmatch(r"\d+", s.strip()) else s
+    if not re.fullmatch(r"\d+", s.strip()):
+        return s
+    if len(s.strip().lstrip("0")) > 9:   # cv2 takes a C int; int() refuses 4300+ digits
+        raise VideoSourceError(f"webcam {s.strip()[:20]}{'...' if len(s.strip()) > 20 else ''}: index out of "
+                               f"range (a file whose name is all digits: write ./{s.strip()[:20]})")
+    return int(s)
 
 
 @contextmanager
@@ -100,12 +105,18 @@ class VideoSource:
         self.name = f"webcam {target}" if self.is_webcam else str(target)
         if not self.is_webcam:
             path = Path(target)
-            if not path.exists():
-                raise VideoSourceError(f"{path}: no such file")
-            if not path.is_file():
-                raise VideoSourceError(f"{path}: not a file")
-            if path.stat().st_size == 0:
-                raise VideoSourceError(f"{path}: empty file, not a video")
+            try:
+                if not path.exists():
+                    raise VideoSourceError(f"{path}: no such file")
+                if not path.is_file():
+                    raise VideoSourceError(f"{path}: not a file")
+                if path.stat().st_size == 0:
+                    raise VideoSourceError(f"{path}: empty file, not a video")
+            except (OSError, ValueError) as e:   # name too long, NUL byte, permission on a parent, ...
+                if isinstance(e, VideoSourceError):
+                    raise
+                raise VideoSourceError(f"{str(path)[:200]!r}: cannot open ({getattr(e, 'strerror', None) or e})") \
+                    from None
         with _quiet_opencv():
             self._cap = cv2.VideoCapture(target)
             if not self._cap.isOpened():

@@ -1,0 +1,183 @@
+"""Where an export's frames and ground truth come from: a scenario file or a run directory.
+
+* ``SCENARIO.yaml`` — simulated and rendered now (:func:`harness.run.rendered_frames`,
+  the frames ``monorarp run`` scores), so the images are the renderer's exact pixels.
+* ``RUN_DIR`` — a directory written by ``monorarp run`` or ``monorarp render``: its
+  ``camera.json`` and ``ground_truth.jsonl``, and its frames decoded from ``frames.mp4``
+  (H.264 at the run's ``--crf``: the pixels are the encoder's, slightly off the
+  rendered ones; the labels are exact either way). A run directory without
+  ``frames.mp4`` (``monorarp run --no-video``, sweep runs) cannot be exported: the
+  error says so; export its scenario file instead.
+
+Everything the export needs is checked by :func:`open_source` before any output exists.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from monorarp.camera import CameraModel
+from monorarp.errors import UserError
+from monorarp.types import Frame
+
+CAMERA_NAME = "camera.json"
+GROUND_TRUTH_NAME = "ground_truth.jsonl"
+VIDEO_NAME = "frames.mp4"
+METRICS_NAME = "metrics.json"
+#: Ground-truth object fields the exports read.
+OBJECT_FIELDS = ("id", "box", "visibility", "d_long", "corners_cam", "length", "width")
+
+
+class ExportInputError(UserError, ValueError):
+    """An export source that cannot be read (missing files, wrong frame count)."""
+
+
+@dataclass
+class ExportSource:
+    """Frames with their ground truth, the camera that made them, and what they are."""
+
+    name: str                    # sequence name (the scenario's)
+    camera: CameraModel
+    fps: float
+    n_frames: int
+    origin: str                  # one line for the summary: where the pixels come from
+    frames: Iterator[tuple[Frame, dict]]
+
+
+def open_source(path: str | Path, n_frames: int | None = None) -> ExportSource:
+    """The first ``n_frames`` (default: all) of a scenario file or a run directory."""
+    path = Path(path)
+    if n_frames is not None and n_frames <= 0:
+        raise ExportInputError(f"--frames: must be a positive integer, got {n_frames}")
+    if path.is_dir():
+        return _run_dir(path, n_frames)
+    if path.suffix.lower() in (".yaml", ".yml"):
+        if not path.is_file():
+            raise ExportInputError(f"{path}: no such scenario file")
+        return _scenario(path, n_frames)
+    if not path.exists():
+        raise ExportInputError(f"{path}: no such run directory or scenario file")
+    raise ExportInputError(f"{path}: neither a run directory nor a scenario file (.yaml)")
+
+
+def _scenario(path: Path, n_frames: int | None) -> ExportSource:
+    from harness.run import rendered_frames
+    from harness.scenario import ScenarioError, load_scenario
+
+    scenario = load_scenario(path)
+    if scenario.n_frames <= 0:
+        raise ExportInputError(f"{path}: duration_s * fps gives no frames")
+    if n_frames is not None and n_frames > scenario.n_frames:
+        raise ExportInputError(f"--frames: {n_frames} exceeds the scenario's {scenario.n_frames} frames "
+                               f"(duration_s * fps) in {path}")
+    n = scenario.n_frames if n_frames is None else n_frames
+    try:
+        frames = rendered_frames(scenario, n)          # sets the simulation up: its errors come here
+    except ScenarioError as e:
+        msg = str(e).removeprefix(f"scenario {scenario.name!r}: ")
+        raise ScenarioError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+    return ExportSource(name=scenario.name, camera=scenario.camera.model(), fps=float(scenario.fps), n_frames=n,
+                        origin=f"rendered from {path}", frames=frames)
+
+
+def _read_truth(path: Path) -> list[dict]:
+    truths = []
+    try:
+        with path.open(encoding="utf-8") as f:
+            for k, line in enumerate(f, 1):
+                if not line.strip():
+                    continue
+                try:
+                    rec = json.loads(line)
+                except json.JSONDecodeError as e:
+                    raise ExportInputError(f"{path}: line {k}: not JSON ({e.msg})") from None
+                if not isinstance(rec, dict) or not isinstance(rec.get("objects"), list) or "frame" not in rec:
+                    raise ExportInputError(f"{path}: line {k}: not a ground-truth frame record")
+                for obj in rec["objects"]:
+                    missing = [f for f in OBJECT_FIELDS if not isinstance(obj, dict) or f not in obj]
+                    if missing:
+                        raise ExportInputError(f"{path}: line {k}: an object lacks {', '.join(missing)} "
+                                               "(written by an older version? render the scenario again)")
+                truths.append(rec)
+    except OSError as e:
+        raise ExportInputError(f"{path}: cannot read ({e.strerror or e})") from None
+    except UnicodeDecodeError:
+        raise ExportInputError(f"{path}: not UTF-8 text") from None
+    for k, rec in enumerate(truths):
+        if int(rec["frame"]) != k:
+            raise ExportInputError(f"{path}: record {k + 1} is frame {rec['frame']}, expected {k}")
+    return truths
+
+
+def _run_fps(run_dir: Path, truths: list[dict]) -> float:
+    metrics = run_dir / METRICS_NAME
+    if metrics.is_file():
+        try:
+            fps = json.loads(metrics.read_text()).get("config", {}).get("fps_scenario")
+            if isinstance(fps, (int, float)) and fps > 0:
+                return float(fps)
+        except (OSError, ValueError, AttributeError):
+            pass
+    if len(truths) >= 2:
+        dt = float(truths[1]["t"]) - float(truths[0]["t"])
+        if dt > 0:
+            return 1.0 / dt
+    return float("nan")
+
+
+def _run_name(run_dir: Path) -> str:
+    metrics = run_dir / METRICS_NAME
+    if metrics.is_file():
+        try:
+            name = json.loads(metrics.read_text()).get("config", {}).get("scenario")
+            if isinstance(name, str) and name:
+                return name
+        except (OSError, ValueError, AttributeError):
+            pass
+    return run_dir.resolve().name
+
+
+def _run_dir(run_dir: Path, n_frames: int | None) -> ExportSource:
+    from harness.video import read_video
+
+    missing = [n for n in (CAMERA_NAME, GROUND_TRUTH_NAME) if not (run_dir / n).is_file()]
+    if missing:
+        raise ExportInputError(f"{run_dir}: not a run directory (no {' or '.join(missing)}; "
+                               "`monorarp run` and `monorarp render` write them)")
+    video = run_dir / VIDEO_NAME
+    if not video.is_file():
+        raise ExportInputError(f"{run_dir}: the run kept no frames ({VIDEO_NAME} is missing: `monorarp run --no-video` "
+                               "and sweep runs write none); export its scenario file instead")
+    camera = CameraModel.load(run_dir / CAMERA_NAME)
+    truths = _read_truth(run_dir / GROUND_TRUTH_NAME)
+    if not truths:
+        raise ExportInputError(f"{run_dir / GROUND_TRUTH_NAME}: no frames")
+    if n_frames is not None and n_frames > len(truths):
+        raise ExportInputError(f"--frames: {n_frames} exceeds the {len(truths)} frames of {run_dir}")
+    n = len(truths) if n_frames is None else n_frames
+    import cv2
+
+    cap = cv2.VideoCapture(str(video))
+    n_video = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else -1
+    cap.release()
+    if n_video < 0:
+        raise ExportInputError(f"{video}: cannot open video")
+    if n_video < n:
+        raise ExportInputError(f"{video}: holds {n_video} frames, fewer than the {n} to export")
+    fps = _run_fps(run_dir, truths)
+
+    def gen() -> Iterator[tuple[Frame, dict]]:
+        decoded = 0
+        for vf, truth in zip(read_video(video, size=(camera.width, camera.height)), truths[:n]):
+            decoded += 1
+            t = float(truth["t"]) if truth.get("t") is not None else (vf.index / fps if math.isfinite(fps) else 0.0)
+            yield Frame(index=int(truth["frame"]), t=t, image=vf.image), truth
+        if decoded < n:
+            raise ExportInputError(f"{video}: decoded only {decoded} of {n} frames")
+
+    return ExportSource(name=_run_name(run_dir), camera=camera, fps=fps, n_frames=n,
+                        origin=f"decoded from {video} (H.264; labels exact)", frames=gen())
