@@ -39,7 +39,8 @@ def report(card: dict, seconds: float) -> list[tuple[str, str, str]]:
                      f"{100 * s['ncap_above_30kmh_ttc_ge_2s']:.1f} % of {s['ncap_above_30kmh_runs']}"))
     for t in tests:
         if t["suite"] == "cut_in":
-            rows.append((f"cut_in {t['test']} {t['params']}", "pass", f"{t['trials_passed']}/{t['trials']}"))
+            params = ", ".join(f"{k} {v:g}" for k, v in t["params"].items() if isinstance(v, (int, float)))
+            rows.append((f"cut_in {t['test']} {params}", "pass", f"{t['trials_passed']}/{t['trials']}"))
     fa = card["false_alarms"]
     if fa["runs"]:
         rows.append(("false alarms per hour (nominal)", "<= 1 over >= 2 h",
