@@ -42,9 +42,14 @@ def run_one(node: str, examples: int, tmp: Path) -> dict:
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", node],
                           cwd=ROOT, env=env, capture_output=True, text=True)
+    log = None
+    if proc.returncode != 0:   # the whole report (hypothesis' example can be long), kept after the run
+        log = Path(tempfile.gettempdir()) / f"fuzz_count-{node.split('::')[-1]}.log"
+        log.write_text(proc.stdout + proc.stderr)
     return {"node": node, "rc": proc.returncode, "seconds": time.perf_counter() - t0,
             "counts": json.loads(counts.read_text()) if counts.exists() else {},
-            "tail": (proc.stdout + proc.stderr)[-6000:]}
+            "tail": "\n".join(line for line in (proc.stdout + proc.stderr).splitlines()
+                              if line.startswith(("E ", "    | E", "FAILED")))[-6000:], "log": log}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {k:<28} {v:>9,}")
     failed = [r for r in results if r["rc"] != 0]
     for r in failed:
-        print(f"\n===== {r['node']} failed =====\n{r['tail']}")
+        print(f"\n===== {r['node']} failed (full report: {r['log']}) =====\n{r['tail']}")
     return 1 if failed else 0
 
 

@@ -393,8 +393,10 @@ class StateEstimator:
         return np.stack([s_x, s_y], axis=1) ** 2
 
     def update(self, tracks: Sequence[Track], t: float) -> dict[int, ObjectState]:
-        """Estimate every usable track's relative state at frame time ``t`` (s)."""
+        """Estimate every usable track's relative state at frame time ``t`` (s); ValueError on a non-finite ``t``."""
         t = float(t)
+        if not np.isfinite(t):
+            raise ValueError(f"frame time must be finite, got {t}")
         for tid in [k for k, tk in self._t.items() if t - tk > self.forget_s]:
             self._state.pop(tid), self._t.pop(tid), self._near_offset.pop(tid, None)
         self._coast = {tr.id: self._coast.get(tr.id, 0) + 1 if tr.coasting else 0 for tr in tracks}

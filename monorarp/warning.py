@@ -118,6 +118,7 @@ class ForwardCollisionWarning:
         self._onset_t: float | None = None
         self._threat_since: float | None = None   # first frame time of the current run of threat frames
         self._last_threat_t: float | None = None
+        self._last_t: float | None = None
 
     def threats(self, states: dict[int, ObjectState]) -> dict[int, float]:
         """Track id -> in-path TTC (s) of every object under the threshold (module docstring)."""
@@ -148,6 +149,11 @@ class ForwardCollisionWarning:
         """The warning decision at frame time ``t`` (s). ``risk`` is not needed (the TTC is recomputed
         with the discounted lateral velocity) and accepted for the common stage interface."""
         t = float(t)
+        if not np.isfinite(t):
+            raise ValueError(f"frame time must be finite, got {t}")
+        if self._last_t is not None and t < self._last_t:
+            self.reset()      # time went backwards: a new sequence (e.g. a looped video)
+        self._last_t = t
         threats = self.threats(states)
         order = tuple(sorted(threats, key=lambda i: (threats[i], i)))
         if threats:

@@ -70,6 +70,12 @@ class Test(_Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> "Test":
+        for name in ("ego_speed_kmh", "gap_m", "target_decel_mps2", "lateral_offset", "seeds", "scenarios"):
+            shown = [Path(v).stem if name == "scenarios" else _fmt(v) for v in getattr(self, name)]
+            dup = next((v for v, k in zip(getattr(self, name), shown) if shown.count(k) > 1), None)
+            if dup is not None:   # the values name the runs: two equal ones would give two runs one id
+                raise ValueError(f"{name}: repeated value {dup!r} (values must differ in their first 6 digits, "
+                                 "scenario files in their names)")
         if any(not (v > 0 and math.isfinite(v)) or v > 250 for v in self.ego_speed_kmh):
             raise ValueError("ego_speed_kmh: every ego speed must be > 0 and <= 250 km/h")
         if any(g <= 0 for g in self.gap_m):

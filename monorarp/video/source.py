@@ -79,8 +79,8 @@ def _quiet_opencv() -> Iterator[None]:
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET; read when FFmpeg is first used
     log = getattr(getattr(cv2, "utils", None), "logging", None)
     previous = log.getLogLevel() if log is not None else None
-    if log is not None:
-        log.setLogLevel(log.LOG_LEVEL_ERROR)
+    if log is not None:   # SILENT, not ERROR: a corrupt file makes OpenCV log "[ERROR:0] ... Could not find
+        log.setLogLevel(log.LOG_LEVEL_SILENT)   # decoder" lines before the one line we print
     try:
         yield
     finally:
