@@ -13,7 +13,7 @@ A generated document that happens to be *valid* is skipped (``assume``) before t
 command is run, so no test ever simulates or renders; each test checks that with
 the loader the command uses.
 
-Examples per test: ``MONORARP_FUZZ_EXAMPLES`` (default 60, about 40 s for the file on
+Examples per test: ``MONORARP_FUZZ_EXAMPLES`` (default 60, about 20 s for the file on
 2 cores); ``benchmarks/fuzz_count.py`` runs them with 10,000 and prints the number of
 malformed documents each reader was given (:data:`COUNTS`, written to
 ``MONORARP_FUZZ_COUNTS`` when set). CI runs are derandomized (same examples every
