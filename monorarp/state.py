@@ -392,6 +392,16 @@ class StateEstimator:
         s_x = d_y / self.camera.fx * self.pixel_std + np.abs(d_x) / d_y * s_y + 0.01
         return np.stack([s_x, s_y], axis=1) ** 2
 
+    def plausible_boxes(self, boxes: np.ndarray) -> np.ndarray:
+        """(M, 4) boxes (px) with every row that has a coordinate beyond 10 image sizes set to NaN.
+
+        Such a box is no measurement (a broken detector or tracker): taken at face value, its
+        distance (~1e300 m) overflows the filter's covariance. NaN rows are predicted / held.
+        """
+        limit = 10.0 * max(self.camera.width, self.camera.height)
+        bad = ~(np.abs(boxes) <= limit).all(axis=1)
+        return np.where(bad[:, None], np.nan, boxes)
+
     def update(self, tracks: Sequence[Track], t: float) -> dict[int, ObjectState]:
         """Estimate every usable track's relative state at frame time ``t`` (s); ValueError on a non-finite ``t``."""
         t = float(t)
@@ -404,7 +414,8 @@ class StateEstimator:
         if not usable:
             return {}
         ids = [tr.id for tr in usable]
-        d_y, terms = self._terms(ids, np.array([tr.box for tr in usable], dtype=float))
+        boxes = self.plausible_boxes(np.array([tr.box for tr in usable], dtype=float))
+        d_y, terms = self._terms(ids, boxes)
         coasting = np.array([tr.coasting for tr in usable])
         known = np.array([i in self._state for i in ids])
         # A new track needs both coordinates from its box; a known one is output in any case
@@ -412,7 +423,6 @@ class StateEstimator:
         new_ok = np.isfinite(d_y) & np.isfinite(lateral_from_terms(terms, d_y))
         ok = known | new_ok
         if self.velocity == "kalman":
-            boxes = np.array([tr.box for tr in usable], dtype=float)
             cut_bottom = border_flags(self.camera, boxes, self.border_tol_px)[:, 2]
             out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom)
             # A box cut by a side border gives its lateral position from the near-edge model (an

@@ -16,8 +16,7 @@ Contract checked (per output): every float an estimator returns is finite; optio
 ``None`` or finite; standard deviations are >= 0; TTCs lie in [0, horizon]; probabilities in
 [0, 1]; ego speeds in [0, max_speed]. Non-finite *timestamps* are not valid frame times (a
 :class:`~monorarp.types.Frame` from a video source or the simulation always has a finite
-one); the cases with them are marked ``xfail`` where a component is known to let NaN through
-(see the issue-10 report: the fix belongs in ``monorarp/state.py``).
+one); components given one raise ValueError rather than let NaN through.
 """
 
 from __future__ import annotations
@@ -77,8 +76,8 @@ def assert_state_finite(s: ObjectState) -> None:
 # --------------------------------------------------------------------------- strategies
 ODD = [0.0, -0.0, -0.5, 0.5, 163.5, 163.6, 179.5, 180.0, 319.5, 359.5, 360.0, 639.5, 640.0, 1e-300, -1e-300,
        1e6, -1e6, 1e9, -1e9]
-# Box coordinates up to 1e9 px (a million image widths). Beyond ~1e150 the state estimator overflows
-# (test_state_estimator_astronomical_box_coordinates, xfail).
+# Box coordinates up to 1e9 px (a million image widths); astronomical ones in
+# test_state_estimator_astronomical_box_coordinates.
 coord = st.one_of(st.floats(-100, 800), st.floats(-100, 800), st.floats(-1e9, 1e9), st.sampled_from(ODD))
 coord_nan = st.one_of(coord, st.sampled_from([NAN, INF, -INF]))
 
@@ -199,10 +198,8 @@ def test_state_estimator_nan_timestamp():
         assert_state_finite(s)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 10 report: a box edge at ~1e300 px (finite) gives d_x ~ -2.8e300 m "
-                                       "and d_x_std = inf (Kalman; the variance overflows) or v_x = inf / 1e308 "
-                                       "(differencing); the fix belongs in monorarp/state.py (treat a box beyond a "
-                                       "few image sizes like a NaN box: no measurement)")
+# A box edge at ~1e300 px (finite) once gave d_x ~ -2.8e300 m and d_x_std = inf (Kalman) or v_x = inf
+# (differencing); boxes beyond 10 image sizes are now no measurement (StateEstimator.plausible_boxes).
 @pytest.mark.parametrize("kw, frames", [
     (dict(velocity="kalman"), [((320.0, 0.0, -1e300, 164.0), 0.0)]),          # d_x -2.8e300, d_x_std inf
     (dict(velocity="difference"), [((300.0, 150.0, 340.0, 200.0), 0.0),        # then d_x 7.8e306, v_x inf
