@@ -262,3 +262,20 @@ def test_page_size(page):
     """Each page reads in one go: the start page within 10 KB, a reference page within 20 KB."""
     limit = 10_000 if page == ROOT / "README.md" else 20_000
     assert len(page.read_bytes()) <= limit
+
+
+def test_repository_paths_exist():
+    """A repository path quoted in the docs (`harness/scoring/hota.py`, `scenarios/fcw/`) exists."""
+    tops = ("monorarp/", "harness/", "scenarios/", "benchmarks/", "scripts/", "training/", "tests/", "results/", ".ci/")
+    problems, checked = [], 0
+    for page in PAGES:
+        text = page.read_text(encoding="utf-8")
+        spans = INLINE_CODE.findall(_prose(text)) + [w for b in _code_blocks(text) for line in b for w in line.split()]
+        for span in spans:
+            path = span.strip().rstrip(",.;:)")
+            if not path.startswith(tops) or not re.fullmatch(r"[\w./*-]+", path):
+                continue
+            checked += 1
+            if not list(ROOT.glob(path)):
+                problems.append(f"{page.name}: no {path}")
+    assert checked >= 30 and not problems, "\n".join(sorted(set(problems)))
