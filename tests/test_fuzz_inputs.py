@@ -528,11 +528,15 @@ def test_video_input_string(base, capsys, spec: str):
 
 # ------------------------------------------------------------------------------ limits, stated once
 def test_limits_are_documented_values():
-    """The readers' limits the README states (a change here is a change there)."""
+    """The readers' limits docs/formats.md states (a change here is a change there)."""
     from monorarp import readers
 
     assert readers.MAX_CONFIG_BYTES == 256 << 10 and readers.MAX_JSON_BYTES == 256 << 20
-    assert readers.MAX_DEPTH == 64 and readers.MAX_NODES == 100_000
+    assert readers.MAX_DEPTH == 64 and readers.MAX_NODES == 100_000 and readers.MAX_INT_BITS == 256
+    text = (Path(__file__).resolve().parents[1] / "docs" / "formats.md").read_text(encoding="utf-8")
+    limits = text[text.index("## Limits of the readers"):]
+    for stated in ("**256 KiB**", "**256 MiB**", "**64**", "**100,000**", "256 bits"):
+        assert stated in limits, stated
 
 
 @pytest.mark.parametrize("text, message", [

@@ -117,7 +117,7 @@ def test_frames_must_be_positive(tmp_path, capsys, frames):
 
 
 def test_valid_minimal_scenario_defaults():
-    """The defaults documented in the README hold (a guard against silent schema drift)."""
+    """The defaults documented in docs/scenarios.md hold (a guard against silent schema drift)."""
     from harness.scenario import parse_scenario
 
     s = parse_scenario({"name": "x"})
@@ -131,6 +131,61 @@ def test_valid_minimal_scenario_defaults():
     cam = s.camera.model()
     assert cam.fx == pytest.approx(320 / math.tan(math.radians(35)))
     assert cam.horizon_row == pytest.approx(179.5 - cam.fy * math.tan(math.radians(2.0)))
+
+
+def _doc_default(cell: str):
+    """A default cell of docs/scenarios.md as a Python value (None: not a value to compare)."""
+    cell = cell.strip().replace("\u2212", "-").strip("`")
+    if not cell or cell.startswith("**"):
+        return None
+    if cell in ("true", "false", "null"):
+        return {"true": True, "false": False, "null": "null"}[cell]
+    if cell.startswith("["):
+        return [float(x) for x in cell.strip("[]").split(",") if x.strip()]
+    try:
+        return float(cell)
+    except ValueError:
+        return cell
+
+
+def test_documented_defaults_table():
+    """Every default in the field tables of docs/scenarios.md equals the schema's (docs and code agree)."""
+    import re
+    from pathlib import Path
+
+    from harness.scenario import parse_scenario
+
+    s = parse_scenario({"name": "x", "vehicles": [{"name": "a", "distance_m": 10}]})
+    sections = {"Top level": s, "`road`": s.road, "`traffic`": s.traffic, "`ego`": s.ego,
+                "`vehicles`": s.vehicles[0], "`camera`": s.camera, "`render`": s.render}
+    text = (Path(__file__).resolve().parents[1] / "docs" / "scenarios.md").read_text(encoding="utf-8")
+    target, checked = None, 0
+    for line in text.splitlines():
+        if line.startswith("## "):
+            target = next((obj for key, obj in sections.items() if line[3:].startswith(key)), None)
+            continue
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip().strip("|"))] if line.startswith("| `") else []
+        if target is None or len(cells) < 3 or cells[1] in ("mapping", "list"):
+            continue
+        names = re.findall(r"`([\w.]+)`", cells[0])
+        defaults = [_doc_default(c) for c in cells[2].split(", ")] if len(names) > 1 else [_doc_default(cells[2])]
+        for name, want in zip(names, defaults):
+            if want is None:
+                continue
+            got = target
+            for part in name.split("."):
+                got = getattr(got, part)
+            got = getattr(got, "value", got)
+            if want == "null":
+                assert got is None, name
+            elif isinstance(want, list):
+                assert list(got) == pytest.approx(want), name
+            elif isinstance(want, float) and not isinstance(got, bool):
+                assert got == pytest.approx(want), name
+            else:
+                assert got == want, name
+            checked += 1
+    assert checked >= 40  # the tables were found and read
 
 
 def test_yaml_anchor_and_comment_friendly(tmp_path):
