@@ -27,7 +27,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -240,40 +240,39 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[F
     limit = opts.frames if opts.frames is not None else ds.n_frames
     pipeline_s = 0.0
     t_offset = 0.0
-    for s_idx, seq in enumerate(ds.sequences):
-        if len(truths) >= limit:
-            break
-        samples = seq.samples[:limit - len(truths)]
+    todo = [(s_idx, k == 0, sample) for s_idx, seq in enumerate(ds.sequences) for k, sample in enumerate(seq.samples)]
+    todo = todo[:limit]
+    first_size: tuple[int, int] | None = None
+    seq_start = 0
+    pipe = None
+    for (s_idx, starts, sample), (_, image) in zip(todo, _images([x[2] for x in todo])):
+        h, w = image.shape[:2]
+        if starts:
+            first_size, seq_start = (w, h), sample.frame
+            if truths:
+                t_offset = truths[-1]["t"] + 1.0          # a gap between sequences
+        elif (w, h) != first_size:
+            raise KittiInputError(f"{sample.image}: {w}x{h} image, but the sequence's first image is "
+                                  f"{first_size[0]}x{first_size[1]} (one calibration per sequence)")
+        camera, offset, info = cameras.get(sample, w, h)
+        if info not in infos:
+            infos.append(info)
+        k = len(truths)
         id_base = s_idx * ID_STRIDE if ds.kind == "tracking" else 0
-        first_size = None
-        pipe = None
-        for sample, image in _images(samples):
-            h, w = image.shape[:2]
-            if first_size is None:
-                first_size = (w, h)
-            elif (w, h) != first_size:
-                raise KittiInputError(f"{sample.image}: {w}x{h} image, but the sequence's first image is "
-                                      f"{first_size[0]}x{first_size[1]} (one calibration per sequence)")
-            camera, offset, info = cameras.get(sample, w, h)
-            if info not in infos:
-                infos.append(info)
-            k = len(truths)
-            t = t_offset + (sample.frame - samples[0].frame) / fps if ds.kind == "tracking" else float(k)
-            truth = truth_record(sample, ds.kind, camera, offset, k, t, id_base)
-            p = pipes.get(camera)
-            if ds.kind == "object" or p is not pipe:
-                p.reset()
-                pipe = p
-            if pipes.labels is not None:
-                pipes.labels.queued = [Detection(box=tuple(o["box"]), score=1.0, label=o["type"].lower())
-                                       for o in truth["objects"] if o["type"] in VEHICLE_TYPES]
-            t0 = time.perf_counter()
-            res = p.process(Frame(index=k, t=t, image=image))
-            pipeline_s += time.perf_counter() - t0
-            truths.append(truth)
-            results.append(_offset_ids(res, id_base))
-        if truths:
-            t_offset = truths[-1]["t"] + 1.0          # a gap between sequences
+        t = t_offset + (sample.frame - seq_start) / fps if ds.kind == "tracking" else float(k)
+        truth = truth_record(sample, ds.kind, camera, offset, k, t, id_base)
+        p = pipes.get(camera)
+        if starts or p is not pipe:
+            p.reset()
+            pipe = p
+        if pipes.labels is not None:
+            pipes.labels.queued = [Detection(box=tuple(o["box"]), score=1.0, label=o["type"].lower())
+                                   for o in truth["objects"] if o["type"] in VEHICLE_TYPES]
+        t0 = time.perf_counter()
+        res = p.process(Frame(index=k, t=t, image=image))
+        pipeline_s += time.perf_counter() - t0
+        truths.append(truth)
+        results.append(_offset_ids(res, id_base))
     facts = {"fps": fps, "pipeline_s": pipeline_s, "camera": infos, "components": pipes.describe()}
     if pipes.cache:
         facts["camera_model"] = next(iter(pipes.cache)).to_dict()
@@ -327,7 +326,7 @@ def per_object_rows(truths: list[dict], records) -> list[dict]:
     samples = {t["frame"]: t["sample"] for t in truths}
     rows = []
     for r in records:
-        d = asdict(r)
+        d = {c: getattr(r, c) for c in COLUMNS}
         t_o = by_key.get((r.frame, r.gt_id)) if r.gt_id is not None else None
         o = t_o[1] if t_o else {}
         d.update({"sample": samples.get(r.frame, ""), "type": o.get("type", ""), "truncated": o.get("truncated"),
