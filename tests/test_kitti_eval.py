@@ -304,6 +304,46 @@ def test_round_trip_truth_and_perfect_scores(round_trip, fmt):
     assert (m["tracking"]["mota"] is None) == (fmt == "kitti")
 
 
+def test_finite_difference_closed_form():
+    f = np.array([3, 4, 5, 6, 9, 10, 20])
+    t = f / 10.0
+    x = 2.0 + 3.0 * t - 0.5 * t ** 2                 # v = 3 - t; central differences are exact on a quadratic
+    v = geo.finite_difference(f, t, x)
+    np.testing.assert_allclose(v[1:3], 3 - t[1:3], atol=1e-12)
+    assert v[0] == pytest.approx((x[1] - x[0]) / 0.1) and v[3] == pytest.approx((x[3] - x[2]) / 0.1)
+    assert v[4] == pytest.approx((x[5] - x[4]) / 0.1) == v[5]      # a run of two frames after a gap
+    assert math.isnan(v[6])                                          # a run of one frame
+
+
+def test_round_trip_velocity_on_tracking(round_trip):
+    """Label velocities = differences of the true positions (to quantisation); the simulation's own velocities
+    differ from position differences by its integration step (a few cm/s), reported, not hidden."""
+    import csv
+
+    truth = round_trip["truth"]
+    fps = 1.0 / (truth[1]["t"] - truth[0]["t"])
+    rows = [r for r in csv.DictReader((round_trip["eval-kitti-tracking"] / "per_object.csv").open()) if r["gt_id"]]
+    by_id: dict[int, list] = {}
+    for r in rows:
+        by_id.setdefault(int(r["gt_id"]), []).append(r)
+    n = 0
+    for gid, rs in by_id.items():
+        frames = np.array([int(r["frame"]) for r in rs])
+        tid = gid                                  # KITTI tracking's track_id is the simulation's vehicle id
+        d_true = np.array([next(o for o in truth[f]["objects"] if o["id"] == tid)["d_long"] for f in frames])
+        x_true = np.array([next(o for o in truth[f]["objects"] if o["id"] == tid)["d_lat"] for f in frames])
+        v_ref = geo.finite_difference(frames, frames / fps, d_true)
+        u_ref = geo.finite_difference(frames, frames / fps, x_true)
+        v = np.array([float(r["v_long_gt"]) if r["v_long_gt"] else np.nan for r in rs])
+        u = np.array([float(r["v_lat_gt"]) if r["v_lat_gt"] else np.nan for r in rs])
+        np.testing.assert_array_equal(np.isnan(v), np.isnan(v_ref))
+        # 2e-4 m of label quantisation over one or two frame intervals
+        np.testing.assert_allclose(v[~np.isnan(v)], v_ref[~np.isnan(v_ref)], atol=2e-4 * fps)
+        np.testing.assert_allclose(u[~np.isnan(u)], u_ref[~np.isnan(u_ref)], atol=2e-4 * fps)
+        n += int((~np.isnan(v)).sum())
+    assert n > 20
+
+
 def test_two_tracking_sequences_keep_ids_apart(round_trip, tmp_path):
     import shutil
 

@@ -6,8 +6,9 @@ stage is reset before it, and each detection is its own track, so no tracker run
 sequence's frames run in order through the tracker, at ``t = frame / fps`` (KITTI: 10 Hz).
 
 Truth per frame (the keys :func:`harness.scoring.evaluate.evaluate` reads): each label's box,
-``d_long``/``d_lat`` from its location, size and yaw (:mod:`harness.kitti_eval.geometry`), no
-velocities, TTC or ego speed (null in ``metrics.json``). A label **counts** (must be found; a
+``d_long``/``d_lat`` from its location, size and yaw (:mod:`harness.kitti_eval.geometry`); on
+tracking sequences ``v_long``/``v_lat`` = finite differences of those over the frame times of the
+same track id (central, one-sided at a track's ends); no TTC or ego speed (null in ``metrics.json``). A label **counts** (must be found; a
 track matching it is scored for distance) when its type is ``Car``, ``Van`` or ``Truck`` and it
 passes KITTI's *moderate* filter (object datasets: box height > 25 px, occlusion <= 1, truncation
 <= 0.30) or KITTI tracking's (box height > 25 px, occlusion <= 2, truncation level 0), and lies
@@ -118,6 +119,23 @@ def truth_record(sample: Sample, kind: str, camera: CameraModel, offset: np.ndar
                         "occluded": int(lab.occluded[k]), "difficulty": difficulty[k], "label": lab.source[k]})
     return {"frame": frame, "t": t, "ego": {"speed": float("nan"), "crashed": False}, "objects": objects,
             "sample": sample.name}
+
+
+def add_velocities(truths: list[dict]) -> None:
+    """Fill ``v_long``/``v_lat`` (m/s) of tracked labels: finite differences of ``d_long``/``d_lat`` over the
+    frame times of the same track id in consecutive frames (:func:`geometry.finite_difference`)."""
+    tracks: dict[int, list[tuple[int, float, dict]]] = {}
+    for tr in truths:
+        for o in tr["objects"]:
+            if o["id"] >= 0 and np.isfinite(o["d_long"]):
+                tracks.setdefault(o["id"], []).append((tr["frame"], tr["t"], o))
+    for rows in tracks.values():
+        f = np.array([r[0] for r in rows])
+        t = np.array([r[1] for r in rows])
+        for key, src in (("v_long", "d_long"), ("v_lat", "d_lat")):
+            v = geo.finite_difference(f, t, np.array([r[2][src] for r in rows]))
+            for r, val in zip(rows, v):
+                r[2][key] = float(val) if np.isfinite(val) else None
 
 
 # ------------------------------------------------------------------------------ cameras
@@ -273,6 +291,8 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[F
         pipeline_s += time.perf_counter() - t0
         truths.append(truth)
         results.append(_offset_ids(res, id_base))
+    if ds.kind == "tracking":
+        add_velocities(truths)
     facts = {"fps": fps, "pipeline_s": pipeline_s, "camera": infos, "components": pipes.describe()}
     if pipes.cache:
         facts["camera_model"] = next(iter(pipes.cache)).to_dict()

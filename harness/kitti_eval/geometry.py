@@ -167,3 +167,23 @@ def difficulty_names(box, occluded, truncated) -> list[str]:
     ok = {d: passes(box, occluded, truncated, d) for d in DIFFICULTIES}
     n = len(np.asarray(box).reshape(-1, 4))
     return [next((d for d in DIFFICULTIES if ok[d][k]), "") for k in range(n)]
+
+
+# ------------------------------------------------------------------------------ velocity
+def finite_difference(frames: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(N,) d x / d t of one track's samples (sorted by frame): central differences between consecutive
+    frames, one-sided at the ends of a run of consecutive frames, NaN for a run of one frame."""
+    f, t, x = (np.asarray(a, dtype=float).reshape(-1) for a in (frames, t, x))
+    n = len(f)
+    out = np.full(n, np.nan)
+    if n < 2:
+        return out
+    linked = np.diff(f) == 1                       # sample k and k+1 are consecutive frames
+    prev_ok = np.r_[False, linked]
+    next_ok = np.r_[linked, False]
+    lo = np.where(prev_ok, np.arange(n) - 1, np.arange(n))
+    hi = np.where(next_ok, np.arange(n) + 1, np.arange(n))
+    ok = hi > lo
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[ok] = (x[hi[ok]] - x[lo[ok]]) / (t[hi[ok]] - t[lo[ok]])
+    return out
