@@ -407,6 +407,20 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys):
         assert not list(tmp_path.glob(f".{out.name}*")), name
 
 
+def test_export_image_of_another_size(round_trip, tmp_path, capsys):
+    import shutil
+
+    ds = tmp_path / "resized"
+    shutil.copytree(round_trip["kitti"], ds)
+    img = ds / "image_2" / "000003.png"
+    cv2.imwrite(str(img), cv2.resize(cv2.imread(str(img)), (320, 180)))
+    out = tmp_path / "out"
+    rc = main(["eval", "kitti", str(ds), "--detector", "labels", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and "000003.png: 320x180 image" in err and "640x360" in err, err
+    assert not out.exists()
+
+
 def test_bad_options(tmp_path, capsys):
     ds = write_object_dataset(tmp_path / "ok")
     for args, needle in ((["--camera-height", "-1"], "--camera-height"), (["--detector", "nosuch"], "nosuch"),
