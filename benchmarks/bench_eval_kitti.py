@@ -73,7 +73,8 @@ def main() -> None:
             for thr in ("0.7", "0.5"):
                 a = m["kitti_ap"][f"iou_{thr}"]
                 print(f"  Car AP @IoU {thr}: " + ", ".join(
-                    f"{k} R40 {v['ap_r40']} R11 {v['ap_r11']} ({v['valid']} cars)" for k, v in a.items()))
+                    f"{k} R40 {v['ap_r40']:.4f} R11 {v['ap_r11']:.4f} (devkit sampling {v['ap_r40_devkit']:.4f} / "
+                    f"{v['ap_r11_devkit']:.4f}; {v['valid']} cars)" for k, v in a.items()))
             if m["tracking"]["mota"] is not None:
                 t = m["tracking"]
                 print(f"  tracking: MOTA {t['mota']}, IDF1 {t['idf1']}, HOTA {t['hota']}")

@@ -212,7 +212,7 @@ def test_ap_against_sklearn():
         sc = np.round(rng.random(len(db)), 1)            # ties on purpose
         tr = kap.ImageTruth(["Car"] * n, gts, np.zeros(n, int), np.zeros(n))
         de = kap.ImageDetections(db, sc, ["car"] * len(db))
-        o, nv = kap.match_image(tr, de, "Car", "moderate", 0.5)
+        o, nv, _ = kap.match_image(tr, de, "Car", "moderate", 0.5)
         truths.append(tr), dets.append(de), outcomes.append(o), scores.append(sc)
         n_valid += nv
     ours = kap.average_precision(truths, dets, "Car", "moderate", 0.5)
@@ -437,3 +437,69 @@ def test_open_dataset_accepts_training_parent(tmp_path):
     assert ds.kind == "object" and ds.n_frames == 2
     with pytest.raises(KittiInputError, match="not a KITTI dataset"):
         open_dataset(tmp_path)
+
+
+# ------------------------------------------------------------------- devkit parity (reference port)
+def _random_dataset(seed: int, n_images: int = 400):
+    rng = np.random.default_rng(seed)
+    truths, dets, gts_ref, dts_ref = [], [], [], []
+    for _ in range(n_images):
+        n = int(rng.integers(0, 8))
+        slots = rng.permutation(10)[:n]
+        h = rng.uniform(15, 120, n)
+        x1 = slots * 120.0 + rng.uniform(0, 20, n)
+        boxes = np.c_[x1, 200 - h, x1 + h * 1.3, np.full(n, 200.0)]
+        types = rng.choice(["Car", "Car", "Car", "Car", "Car", "Car", "Van", "DontCare", "Pedestrian"], n).tolist()
+        occ = rng.choice([0, 0, 0, 1, 2], n)
+        trunc = np.where(rng.random(n) < 0.6, 0.0, np.round(rng.uniform(0, 0.6, n), 2))
+        db, ds = [], []
+        for k in range(n):
+            if types[k] in ("Car", "Van", "DontCare") and rng.random() < 0.85:
+                b = boxes[k].copy()
+                b[[0, 2]] += rng.normal(0, 0.04 * h[k], 2)
+                b[[1, 3]] += rng.normal(0, 0.04 * h[k], 2)
+                if types[k] == "DontCare":                    # a detection well inside the region
+                    b = boxes[k] + np.array([0.1, 0.1, -0.1, -0.1]) * h[k]
+                db.append(b)
+                ds.append(rng.beta(5, 2))
+        for _ in range(int(rng.poisson(0.8))):                 # false positives in the free slots
+            x = (10 + rng.integers(0, 4)) * 120.0
+            hh = rng.uniform(20, 100)
+            db.append([x, 200 - hh, x + hh * 1.3, 200.0])
+            ds.append(rng.beta(2, 5))
+        db = np.array(db, dtype=float).reshape(-1, 4)
+        ds = np.round(np.array(ds), 3)
+        truths.append(kap.ImageTruth(types, boxes, occ, trunc))
+        dets.append(kap.ImageDetections(db, ds, ["car"] * len(db)))
+        gts_ref.append({"name": types, "bbox": boxes, "occluded": occ, "truncated": trunc})
+        dts_ref.append({"name": ["Car"] * len(db), "bbox": db, "score": ds})
+    return truths, dets, gts_ref, dts_ref
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_ap_close_to_the_devkit_port(seed):
+    from kitti_devkit_reference import devkit_ap
+
+    truths, dets, gts_ref, dts_ref = _random_dataset(seed)
+    for d_idx, diff in enumerate(("easy", "moderate", "hard")):
+        for thr in (0.7, 0.5):
+            ours = kap.average_precision(truths, dets, "Car", diff, thr)
+            r40, r11 = devkit_ap(gts_ref, dts_ref, "Car", d_idx, thr)
+            assert ours["valid"] > 150
+            assert ours["ap_r40_devkit"] == pytest.approx(r40, abs=1e-12), (diff, thr, ours, r40)
+            assert ours["ap_r11_devkit"] == pytest.approx(r11, abs=1e-12), (diff, thr, ours, r11)
+            # the definition differs from the devkit's nearest-recall sampling by at most one sample
+            assert abs(ours["ap_r40"] - r40) <= 1 / 40 and abs(ours["ap_r11"] - r11) <= 1 / 11
+
+
+def test_devkit_difference_on_40_cars():
+    from kitti_devkit_reference import devkit_ap
+
+    boxes = np.array([_tall(50.0 * k) for k in range(40)])
+    truth = kap.ImageTruth(["Car"] * 40, boxes, np.zeros(40, int), np.zeros(40))
+    det = kap.ImageDetections(boxes, np.linspace(0.99, 0.5, 40), ["car"] * 40)
+    ours = kap.average_precision([truth], [det], "Car", "easy", 0.7)
+    ref = devkit_ap([{"name": ["Car"] * 40, "bbox": boxes, "occluded": np.zeros(40), "truncated": np.zeros(40)}],
+                    [{"name": ["Car"] * 40, "bbox": boxes, "score": det.scores}], "Car", 0, 0.7)
+    assert ours["ap_r40"] == 1.0 and ref[0] == pytest.approx(0.975)      # documented in harness.scoring.kitti_ap
+    assert ours["ap_r40_devkit"] == pytest.approx(ref[0]) and ours["ap_r11_devkit"] == pytest.approx(ref[1])

@@ -21,9 +21,13 @@ Precision/recall are evaluated at each distinct score (ties enter together). Int
 precision ``p(r) = max{precision at recall >= r}`` (0 when that recall is never reached);
 ``AP_R40`` = mean of ``p`` at ``r = 1/40, 2/40, ..., 1`` (KITTI's since 2019), ``AP_R11`` = at
 ``r = 0, 0.1, ..., 1`` (the original). Values are fractions 0..1 (the devkit prints percent).
-The official devkit places its 41 samples by picking score thresholds from the true positives,
-which for a few tens of objects moves it away from this definition (for exactly 40 cars all found
-it gives 97.5 %, not 100 %); with thousands of objects the two agree.
+The official devkit places its 41 samples by picking score thresholds among the true positives,
+at the recall *nearest* each sample (this definition takes the best precision at recall *at or
+beyond* it): where the curve ends short of recall 1 the devkit credits one more sample, up to
+1/40 higher; for exactly 40 cars all found it gives 97.5 %, not 100 %. Both are reported:
+``ap_r40``/``ap_r11`` (the definition) and ``ap_r40_devkit``/``ap_r11_devkit`` (the devkit's
+sampling on this module's matching, which equals the devkit's counts when no two detections
+compete for one box).
 """
 
 from __future__ import annotations
@@ -97,9 +101,9 @@ def gt_status(truth: ImageTruth, cls: str, difficulty: str) -> tuple[np.ndarray,
 
 
 def match_image(truth: ImageTruth, dets: ImageDetections, cls: str, difficulty: str, iou_threshold: float
-                ) -> tuple[np.ndarray, int]:
-    """``(outcome, n_valid)``: per detection of the class (others: -2) 1 TP, 0 FP, -1 ignored, in the
-    order of ``dets``; ``n_valid`` = valid ground-truth boxes not excused."""
+                ) -> tuple[np.ndarray, int, int]:
+    """``(outcome, n_valid, n_excused)``: per detection of the class (others: -2) 1 TP, 0 FP, -1 ignored, in
+    the order of ``dets``; ``n_valid`` = valid ground-truth boxes not excused; ``n_excused`` the excused ones."""
     status, dc = gt_status(truth, cls, difficulty)
     gtb = _boxes(truth.boxes)
     db = _boxes(dets.boxes)
@@ -131,7 +135,7 @@ def match_image(truth: ImageTruth, dets: ImageDetections, cls: str, difficulty: 
             outcome[j] = -1
         else:
             outcome[j] = 0
-    return outcome, int((status == 0).sum()) - excused
+    return outcome, int((status == 0).sum()) - excused, excused
 
 
 def pr_curve(outcomes: Sequence[np.ndarray], scores: Sequence[np.ndarray], n_valid: int
@@ -166,27 +170,64 @@ def interpolated_ap(precision: np.ndarray, recall: np.ndarray, points: np.ndarra
     return float(np.mean(vals))
 
 
+def devkit_thresholds(tp_scores: np.ndarray, n_gt: int, n_points: int = 41) -> np.ndarray:
+    """The devkit's ``get_thresholds``: scores of true positives at which recall passes (to the nearest)
+    each of ``n_points`` evenly spaced recall samples (the first at recall ``1 / n_gt``)."""
+    s = np.sort(np.asarray(tp_scores, dtype=float))[::-1]
+    out, current = [], 0.0
+    for i, score in enumerate(s):
+        left = (i + 1) / n_gt
+        right = (i + 2) / n_gt if i < len(s) - 1 else left
+        if (right - current) < (current - left) and i < len(s) - 1:
+            continue
+        out.append(score)
+        current += 1.0 / (n_points - 1.0)
+    return np.array(out)
+
+
+def devkit_sampled_ap(outcome: np.ndarray, scores: np.ndarray, n_gt: int) -> tuple[float, float]:
+    """``(AP_R40, AP_R11)`` sampled as KITTI's devkit does (precision at :func:`devkit_thresholds`, made
+    non-increasing, ``sum(p[1:41]) / 40`` and ``sum(p[0:41:4]) / 11``), from this module's matching."""
+    o, s = np.asarray(outcome).reshape(-1), np.asarray(scores, dtype=float).reshape(-1)
+    keep = o >= 0
+    o, s = o[keep], s[keep]
+    ths = devkit_thresholds(s[o == 1], n_gt)
+    prec = np.zeros(41)
+    if len(ths):
+        order = np.argsort(-s, kind="stable")
+        tp, fp = np.cumsum(o[order] == 1), np.cumsum(o[order] == 0)
+        n_above = np.searchsorted(-s[order], -ths, side="right")       # detections with score >= threshold
+        p = tp[n_above - 1] / np.maximum(tp[n_above - 1] + fp[n_above - 1], 1)
+        prec[:len(p)] = np.maximum.accumulate(p[::-1])[::-1]
+    return float(prec[1:].sum() / 40), float(prec[0::4].sum() / 11)
+
+
 R40 = np.linspace(1.0 / 40, 1.0, 40)
 R11 = np.linspace(0.0, 1.0, 11)
 
 
 def average_precision(truths: Sequence[ImageTruth], detections: Sequence[ImageDetections], cls: str = "Car",
                       difficulty: str = "moderate", iou_threshold: float = 0.7) -> dict:
-    """``ap_r40``, ``ap_r11`` (fractions; null without a valid box), ``valid`` boxes, ``tp``/``fp`` at the
-    lowest score and the detections ``ignored``, over a dataset (``truths[i]``, ``detections[i]``: image i)."""
+    """``ap_r40``, ``ap_r11`` (fractions; null without a valid box), the same sampled as the devkit does
+    (``ap_r40_devkit``, ``ap_r11_devkit``), ``valid`` boxes, ``tp``/``fp`` at the lowest score and the
+    detections ``ignored``, over a dataset (``truths[i]``, ``detections[i]``: image i)."""
     if len(truths) != len(detections):
         raise ValueError(f"{len(truths)} images of truth but {len(detections)} of detections")
-    outcomes, scores, n_valid = [], [], 0
+    outcomes, scores, n_valid, n_excused = [], [], 0, 0
     for tr, de in zip(truths, detections):
-        o, n = match_image(tr, de, cls, difficulty, iou_threshold)
+        o, n, e = match_image(tr, de, cls, difficulty, iou_threshold)
         outcomes.append(o)
         scores.append(np.asarray(de.scores, dtype=float).reshape(-1))
         n_valid += n
+        n_excused += e
     _, precision, recall = pr_curve(outcomes, scores, n_valid)
     all_o = np.concatenate(outcomes) if outcomes else np.zeros(0, int)
+    all_s = np.concatenate(scores) if scores else np.zeros(0)
     nan = float("nan")
+    dk40, dk11 = devkit_sampled_ap(all_o, all_s, n_valid + n_excused) if n_valid + n_excused else (nan, nan)
     return {"ap_r40": interpolated_ap(precision, recall, R40) if n_valid else nan,
             "ap_r11": interpolated_ap(precision, recall, R11) if n_valid else nan,
+            "ap_r40_devkit": dk40, "ap_r11_devkit": dk11,
             "valid": n_valid, "tp": int((all_o == 1).sum()), "fp": int((all_o == 0).sum()),
             "ignored": int((all_o == -1).sum())}
 
