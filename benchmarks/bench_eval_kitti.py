@@ -65,7 +65,8 @@ def main() -> None:
             d, lat, dd = m["distance"], m["lateral"], m["detection"]
             print(f"\n{det}: {m['frames']} frames ({ds.kind}) in {wall:.2f} s = {m['frames'] / wall:.1f} frames/s "
                   f"overall ({cpu / m['frames'] * 1e3:.1f} ms CPU per frame in all threads, "
-                  f"{main_cpu / m['frames'] * 1e3:.1f} ms in the main thread); pipeline {m['fps']:.1f} frames/s (detector {rt['detector']:.2f} ms, state "
+                  f"{main_cpu / m['frames'] * 1e3:.1f} ms in the main thread); pipeline {m['fps']:.1f} frames/s "
+                  f"(detector {rt['detector']:.2f} ms, state "
                   f"{rt['state']:.3f} ms, tracker {rt['tracker']:.3f} ms, total {rt['total']:.2f} ms per frame)")
             print(f"  distance: {d['count']} pairs, |err| median {d['abs_err_median_m']} m, rel. median "
                   f"{d['rel_err_median']}, p90 {d['rel_err_p90']}; lateral |err| median {lat['abs_err_median_m']} m")

@@ -377,13 +377,15 @@ def _bad_cases(tmp: Path) -> dict[str, tuple[Path, list[str], str]]:
     (d / "label_2" / "000001.txt").rename(d / "label_2" / "000007.txt")
     cases["label without image"] = (d, [], "000007.txt: no image")
     d = write_object_dataset(tmp / "fields")
-    (d / "label_2" / "000001.txt").write_text(HAND_LABELS[0][0] + "\nCar 0.00 0 -1.60 180 40 240 100 1.5 1.6 4.0 0.5 1.65 20\n")
+    (d / "label_2" / "000001.txt").write_text(HAND_LABELS[0][0]
+                                              + "\nCar 0.00 0 -1.60 180 40 240 100 1.5 1.6 4.0 0.5 1.65 20\n")
     cases["wrong field count"] = (d, [], "000001.txt: line 2: 14 fields")
     d = write_object_dataset(tmp / "nan_field")
     (d / "label_2" / "000000.txt").write_text("Car 0.00 0 -1.60 180 40 240 abc 1.5 1.6 4.0 0.5 1.65 20 0\n")
     cases["not a number"] = (d, [], "000000.txt: line 1: field y2")
     d = write_object_dataset(tmp / "no_p2")
-    (d / "calib" / "000001.txt").write_text("\n".join(x for x in kitti_rig_calib().splitlines() if not x.startswith("P2")))
+    no_p2 = [x for x in kitti_rig_calib().splitlines() if not x.startswith("P2")]
+    (d / "calib" / "000001.txt").write_text("\n".join(no_p2))
     cases["calib without P2"] = (d, [], "calib/000001.txt: no P2")
     d = write_object_dataset(tmp / "size", size=(160, 60))
     cases["image size vs calibration"] = (d, [], "lies outside it")

@@ -8,12 +8,14 @@ sequence's frames run in order through the tracker, at ``t = frame / fps`` (KITT
 Truth per frame (the keys :func:`harness.scoring.evaluate.evaluate` reads): each label's box,
 ``d_long``/``d_lat`` from its location, size and yaw (:mod:`harness.kitti_eval.geometry`); on
 tracking sequences ``v_long``/``v_lat`` = finite differences of those over the frame times of the
-same track id (central, one-sided at a track's ends); no TTC or ego speed (null in ``metrics.json``). A label **counts** (must be found; a
-track matching it is scored for distance) when its type is ``Car``, ``Van`` or ``Truck`` and it
-passes KITTI's *moderate* filter (object datasets: box height > 25 px, occlusion <= 1, truncation
-<= 0.30) or KITTI tracking's (box height > 25 px, occlusion <= 2, truncation level 0), and lies
-within 80 m; every other label (other types, ``DontCare``, harder vehicles) is *ignored*: neither
-missed nor, when a detection or track matches it, a false positive (the run scoring's rule).
+same track id (central, one-sided at a track's ends); no TTC or ego speed (null in ``metrics.json``).
+
+A label **counts** (must be found; a track matching it is scored for distance) when its type is
+``Car``, ``Van`` or ``Truck`` and it passes KITTI's *moderate* filter (object datasets: box height
+> 25 px, occlusion <= 1, truncation <= 0.30) or KITTI tracking's (box height > 25 px, occlusion
+<= 2, truncation level 0), and lies within 80 m; every other label (other types, ``DontCare``,
+harder vehicles) is *ignored*: neither missed nor, when a detection or track matches it, a false
+positive (the run scoring's rule).
 
 Outputs in ``OUT``: ``metrics.json`` (the run keys, ``tracking`` null for object datasets, plus
 ``kitti_ap`` from :mod:`harness.scoring.kitti_ap` and ``dataset``) and ``per_object.csv`` (the run's

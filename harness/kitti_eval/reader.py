@@ -91,13 +91,6 @@ class Dataset:
 
 
 # ---------------------------------------------------------------------------- text formats
-def _rel(path: Path, root: Path) -> str:
-    try:
-        return str(path.relative_to(root.parent))
-    except ValueError:
-        return str(path)
-
-
 def _read_lines(path: Path) -> list[str]:
     try:
         return path.read_text(encoding="utf-8").splitlines()
@@ -298,7 +291,8 @@ def _tracking_dataset(root: Path) -> Dataset:
         labels = parse_tracking_labels(label_path)
         extra = sorted(set(labels) - set(images))
         if extra:
-            raise KittiInputError(f"{label_path}: labels for frame {extra[0]}, which has no image in image_02/{d.name}/")
+            raise KittiInputError(f"{label_path}: labels for frame {extra[0]}, which has no image in "
+                                  f"image_02/{d.name}/")
         frames = sorted(images)
         if frames != list(range(frames[0], frames[0] + len(frames))):
             gap = next(f for a, f in zip(range(frames[0], frames[0] + len(frames)), frames) if a != f)
