@@ -249,6 +249,9 @@ def test_cli_on_hand_written_object_dataset(tmp_path, capsys):
         else:
             assert float(r["d_long_gt"]) == pytest.approx(line[1], abs=2e-4)
             assert float(r["d_lat_gt"]) == pytest.approx(line[2], abs=1e-6)
+    assert main(["eval", "kitti", str(ds), "--detector", "labels", "--camera-height", "1.65", "--frames", "1",
+                 "--out", str(out)]) == 0                     # a previous evaluation is replaced
+    assert json.loads((out / "metrics.json").read_text())["frames"] == 1
 
 
 # ----------------------------------------------------------------------------- round trip
