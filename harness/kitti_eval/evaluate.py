@@ -26,9 +26,10 @@ from __future__ import annotations
 
 import csv
 import json
+import threading
 import time
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -68,9 +69,11 @@ class KittiEvalOptions:
     frames: int | None = None         # evaluate only the first N frames (all sequences together)
 
 
-class LabelDetector:
-    """``--detector labels``: the frame's vehicle label boxes (``Car``, ``Van``, ``Truck``), score 1,
-    labelled with their type in lower case (an oracle with KITTI's label precision)."""
+class QueuedDetector:
+    """The pipeline's detector stage here: hands back the detections queued for the frame, made beforehand
+    (the detector runs on the decoding threads, in parallel with the rest of the pipeline) or, for
+    ``--detector labels``, the frame's vehicle label boxes (``Car``, ``Van``, ``Truck``), score 1, labelled
+    with their type in lower case (an oracle with KITTI's label precision)."""
 
     def __init__(self) -> None:
         self.queued: list[Detection] = []
@@ -154,10 +157,11 @@ def read_manifest(root: Path) -> dict:
 
 
 class Cameras:
-    """Camera (and label offset) per calibration and image size, checked against the images."""
+    """Camera (and label offset) per calibration and image size, checked against the images (thread-safe)."""
 
     def __init__(self, opts: KittiEvalOptions, manifest: dict) -> None:
         self.opts = opts
+        self.lock = threading.Lock()
         cam = manifest.get("camera") if isinstance(manifest.get("camera"), dict) else {}
         self.size = (cam.get("width"), cam.get("height")) if cam.get("width") and cam.get("height") else None
         self.cache: dict[tuple, tuple[CameraModel, np.ndarray, dict]] = {}
@@ -167,6 +171,10 @@ class Cameras:
             raise KittiInputError(f"{sample.image}: {width}x{height} image, but the dataset's camera (export.json) "
                                   f"is {self.size[0]}x{self.size[1]}: image of another size than the calibration")
         key = (str(sample.calib_path), width, height)
+        with self.lock:
+            return self._get(key, sample, width, height)
+
+    def _get(self, key: tuple, sample: Sample, width: int, height: int) -> tuple[CameraModel, np.ndarray, dict]:
         if key not in self.cache:
             try:
                 K, _ = geo.intrinsics(sample.calib["P2"])
@@ -191,16 +199,17 @@ def _read_image(path: Path) -> np.ndarray:
     return image
 
 
-def _images(samples: list[Sample]) -> Iterator[tuple[Sample, np.ndarray]]:
-    """Images decoded ahead on a small thread pool (OpenCV releases the GIL), in order."""
+def _prefetch(samples: list[Sample], work: Callable[[Sample], Any]) -> Iterator[Any]:
+    """``work(sample)`` of each sample, computed ahead on two threads (image decoding and ONNX inference
+    release the GIL), yielded in order."""
     with ThreadPoolExecutor(max_workers=2) as pool:
-        pending = [pool.submit(_read_image, s.image) for s in samples[:PREFETCH]]
-        for k, s in enumerate(samples):
-            image = pending[k].result()
+        pending = [pool.submit(work, s) for s in samples[:PREFETCH]]
+        for k in range(len(samples)):
+            out = pending[k].result()
             pending[k] = None
             if k + PREFETCH < len(samples):
-                pending.append(pool.submit(_read_image, samples[k + PREFETCH].image))
-            yield s, image
+                pending.append(pool.submit(work, samples[k + PREFETCH]))
+            yield out
 
 
 def _offset_ids(res: FrameResult, off: int) -> FrameResult:
@@ -216,29 +225,39 @@ def _offset_ids(res: FrameResult, off: int) -> FrameResult:
 
 
 class _Pipelines:
-    """One pipeline per camera (the detector's fovea and the state estimator read it)."""
+    """One pipeline per camera (the detector's fovea and the state estimator read it); its detector stage is
+    the shared :class:`QueuedDetector`, the real detector of each camera runs on the decoding threads."""
 
     def __init__(self, opts: KittiEvalOptions, kind: str) -> None:
         self.opts, self.kind = opts, kind
-        self.labels = LabelDetector() if opts.detector == LABELS_DETECTOR else None
+        self.labels = opts.detector == LABELS_DETECTOR
+        self.queue = QueuedDetector()
         self.cache: OrderedDict[CameraModel, Pipeline] = OrderedDict()
+        self.detectors: dict[CameraModel, Any] = {}
+        self.lock = threading.Lock()
 
     def config(self) -> PipelineConfig:
-        det = "oracle" if self.labels is not None else self.opts.detector    # placeholder, replaced below
+        det = "oracle" if self.labels else self.opts.detector                 # "oracle": a placeholder, replaced
         tracker = "sort" if self.kind == "object" else self.opts.tracker      # replaced for object datasets
         return PipelineConfig(detector=ComponentConfig(name=det), tracker=ComponentConfig(name=tracker))
 
     def get(self, camera: CameraModel) -> Pipeline:
-        if camera not in self.cache:
-            from harness.run import build_pipeline
+        with self.lock:
+            if camera not in self.cache:
+                from harness.run import build_pipeline
 
-            p = build_pipeline(self.config(), camera)
-            if self.labels is not None:
-                p.detector = self.labels
-            if self.kind == "object":
-                p.tracker = PerImageTracker()
-            self.cache[camera] = p
-        return self.cache[camera]
+                p = build_pipeline(self.config(), camera)
+                self.detectors[camera] = None if self.labels else p.detector
+                p.detector = self.queue
+                if self.kind == "object":
+                    p.tracker = PerImageTracker()
+                self.cache[camera] = p
+            return self.cache[camera]
+
+    def detector(self, camera: CameraModel) -> Any:
+        """The real detector of ``camera``'s pipeline (None for ``--detector labels``)."""
+        self.get(camera)
+        return self.detectors[camera]
 
     def describe(self) -> dict:
         return {"detector": self.opts.detector,
@@ -265,7 +284,20 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[F
     first_size: tuple[int, int] | None = None
     seq_start = 0
     pipe = None
-    for (s_idx, starts, sample), (_, image) in zip(todo, _images([x[2] for x in todo])):
+
+    def work(sample: Sample) -> tuple[np.ndarray, tuple, list[Detection] | None, float]:
+        """Decode, find the camera, detect (on a prefetch thread): (image, camera, detections, ms)."""
+        image = _read_image(sample.image)
+        cam = cameras.get(sample, image.shape[1], image.shape[0])
+        det = pipes.detector(cam[0])
+        if det is None:
+            return image, cam, None, 0.0
+        t0 = time.perf_counter()
+        dets = list(det.detect(image))
+        return image, cam, dets, (time.perf_counter() - t0) * 1e3
+
+    for (s_idx, starts, sample), (image, (camera, offset, info), dets, det_ms) in zip(
+            todo, _prefetch([x[2] for x in todo], work)):
         h, w = image.shape[:2]
         if starts:
             first_size, seq_start = (w, h), sample.frame
@@ -274,7 +306,6 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[F
         elif (w, h) != first_size:
             raise KittiInputError(f"{sample.image}: {w}x{h} image, but the sequence's first image is "
                                   f"{first_size[0]}x{first_size[1]} (one calibration per sequence)")
-        camera, offset, info = cameras.get(sample, w, h)
         if info not in infos:
             infos.append(info)
         k = len(truths)
@@ -285,12 +316,16 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[F
         if starts or p is not pipe:
             p.reset()
             pipe = p
-        if pipes.labels is not None:
-            pipes.labels.queued = [Detection(box=tuple(o["box"]), score=1.0, label=o["type"].lower())
-                                   for o in truth["objects"] if o["type"] in VEHICLE_TYPES]
+        pipes.queue.queued = dets if dets is not None else [
+            Detection(box=tuple(o["box"]), score=1.0, label=o["type"].lower())
+            for o in truth["objects"] if o["type"] in VEHICLE_TYPES]
         t0 = time.perf_counter()
         res = p.process(Frame(index=k, t=t, image=image))
-        pipeline_s += time.perf_counter() - t0
+        pipeline_s += time.perf_counter() - t0 + det_ms / 1e3
+        if dets is not None:                                # the detector's own time, measured on its thread
+            tm = res.timings_ms
+            tm["total"] += det_ms - tm.get("detector", 0.0)
+            tm["detector"] = det_ms
         truths.append(truth)
         results.append(_offset_ids(res, id_base))
     if ds.kind == "tracking":
