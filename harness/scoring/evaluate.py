@@ -62,6 +62,10 @@ from monorarp.camera import CameraModel
 from monorarp.types import FrameResult, RiskEstimate
 
 NAN = float("nan")
+#: Keys of ``metrics["tracking"]`` (all null when tracking is not scored).
+TRACKING_KEYS = ("mota", "motp", "idf1", "idp", "idr", "id_switches", "false_positives", "misses", "objects",
+                 "unique_objects", "fragmentations", "mostly_tracked", "partially_tracked", "mostly_lost",
+                 "precision", "recall", "hota", "deta", "assa", "loca", "hota_by_alpha")
 STAGES = ("detector", "ego_speed", "tracker", "state", "risk", "warning", "total")
 
 
@@ -81,9 +85,13 @@ def _f(v) -> float:
 
 
 def counted_mask(objects: Sequence[Mapping], cfg: EvalConfig) -> np.ndarray:
-    """Which GT objects count (visibility and range rule of the module docstring)."""
-    return np.array([o["visibility"] >= cfg.min_visibility and o["d_long"] <= cfg.max_range_m for o in objects],
-                    dtype=bool)
+    """Which GT objects count (visibility and range rule of the module docstring).
+
+    An object carrying its own ``counted`` flag (a labelled dataset whose labels say what must be
+    found, e.g. KITTI's difficulty levels) uses it in place of the visibility rule; range still applies.
+    """
+    return np.array([(bool(o["counted"]) if "counted" in o else o["visibility"] >= cfg.min_visibility)
+                     and o["d_long"] <= cfg.max_range_m for o in objects], dtype=bool)
 
 
 def out_of_range(boxes: np.ndarray, camera: CameraModel | None, max_range_m: float) -> np.ndarray | None:
@@ -180,9 +188,13 @@ def frame_warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResu
 
 
 def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult],
-                               cfg: EvalConfig, camera: CameraModel | None = None) -> tuple[dict, dict]:
-    """Detection precision/recall at ``min_iou`` and motmetrics tracking metrics."""
-    mot = MotScorer(cfg.min_iou)
+                               cfg: EvalConfig, camera: CameraModel | None = None,
+                               tracking: bool = True) -> tuple[dict, dict]:
+    """Detection precision/recall at ``min_iou`` and motmetrics tracking metrics.
+
+    ``tracking=False`` (independent images, e.g. a KITTI object dataset): every tracking value is null.
+    """
+    mot = MotScorer(cfg.min_iou) if tracking else None
     tp = n_pred = n_true = 0
     for truth, res in zip(truths, results):
         objs = truth["objects"]
@@ -194,12 +206,16 @@ def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[Fram
         tp += len(kept)
         n_pred += int((~ignored).sum())
         n_true += int(counted.sum())
+        if mot is None:
+            continue
         tr_boxes = as_boxes([t.box for t in res.tracks])
         mot.update([o["id"] for o in objs], gt_boxes, counted, [t.id for t in res.tracks], tr_boxes,
                    frame=int(truth["frame"]), ignore_cover=cfg.ignore_cover,
                    track_out_of_range=out_of_range(tr_boxes, camera, cfg.max_range_m))
     detection = algo.precision_recall(tp, n_pred, n_true)
     detection["min_iou"] = cfg.min_iou
+    if mot is None:
+        return detection, dict.fromkeys(TRACKING_KEYS)
     # Undefined ratios (e.g. MOTA with no counted object is -inf in motmetrics) become nan -> null.
     m = {k: (v if np.isfinite(v) else NAN) for k, v in mot.compute().items()}
     tracking = {"mota": m["mota"], "motp": m["motp"], "idf1": m["idf1"], "idp": m["idp"], "idr": m["idr"],
@@ -232,8 +248,8 @@ def runtime_metrics(results: Sequence[FrameResult], wall_time_s: float | None) -
 def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig = EvalConfig(),
              wall_time_s: float | None = None, run_info: Mapping | None = None,
              camera: CameraModel | None = None, baseline_risk: Sequence[RiskEstimate] | None = None,
-             ego_speed_method: str | None = None, fcw_threshold_s: float | None = None
-             ) -> tuple[dict, list[ObjectRecord]]:
+             ego_speed_method: str | None = None, fcw_threshold_s: float | None = None,
+             tracking: bool = True) -> tuple[dict, list[ObjectRecord]]:
     """Score a run. ``truths[i]`` and ``results[i]`` must describe the same frame.
 
     ``camera`` (the one that rendered the frames) enables the range filter on predictions.
@@ -241,6 +257,7 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
     ``ego_speed_method``: name of the ego-speed stage (None: the run has none).
     ``fcw_threshold_s``: the warning stage's TTC threshold, which defines a truth conflict
     for ``warning.*`` (:mod:`harness.scoring.warnings`); None: ``cfg.warning_threshold_s``.
+    ``tracking=False``: the frames are independent images, ``tracking.*`` is all null.
 
     Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`jsonable`.
     """
@@ -252,7 +269,7 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
     records = [r for tr, res in zip(truths, results) for r in frame_records(tr, res, cfg, camera)]
     sm = state_metrics(records, cfg)
     sm["ttc"]["frame_warning"] = frame_warning_metrics(truths, results, cfg)
-    detection, tracking = detection_tracking_metrics(truths, results, cfg, camera)
+    detection, tracking = detection_tracking_metrics(truths, results, cfg, camera, tracking)
     runtime, fps = runtime_metrics(results, wall_time_s)
     metrics = {
         "frames": len(results),
