@@ -3,7 +3,6 @@ scikit-learn, the round trip ``monorarp export`` -> ``eval kitti --detector labe
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from pathlib import Path
@@ -26,21 +25,7 @@ FX, CX, CY = 700.0, 199.5, 74.5          # hand-written camera: 400 x 150 px
 W, H = 400, 150
 
 
-def main(argv: list[str]) -> int:
-    """``monorarp`` with the ``eval`` command registered even when the installed package metadata predates it
-    (entry points come from the installed distribution; ``pip install -e .`` refreshes them)."""
-    from harness.commands import eval as eval_cmd
-
-    parser = cli.build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    if "eval" not in sub.choices:
-        eval_cmd.register(sub)
-    orig = cli.build_parser
-    cli.build_parser = lambda: parser
-    try:
-        return cli.main(argv)
-    finally:
-        cli.build_parser = orig
+main = cli.main
 
 
 # ------------------------------------------------------------------------- hand-written data
