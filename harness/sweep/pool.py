@@ -139,13 +139,20 @@ class ProcessExecutor:
         n_workers = 0
         try:
             while True:
+                for w in [w for w in idle if not w.process.is_alive()]:   # died between runs (OOM killer)
+                    idle.remove(w)
+                    self._kill(w)
+                    n_workers -= 1
                 while (idle or n_workers < self.workers) and (task := queue.next()) is not None:
                     if not idle:
                         idle.append(self._spawn(threads))
                         n_workers += 1
                     w = idle.pop()
                     w.task, w.started = task, None
-                    w.conn.send((task, str(runs_dir)))
+                    try:
+                        w.conn.send((task, str(runs_dir)))
+                    except OSError:      # it died just now: its sentinel reports it below
+                        pass
                     busy.append(w)
                 if not busy:
                     return
@@ -172,6 +179,7 @@ class ProcessExecutor:
                         w.task = None
                         idle.append(w)
                     else:
+                        w.conn.close()
                         n_workers -= 1
                     yield outcome
         finally:
