@@ -184,7 +184,7 @@ def _alive(pid: int) -> bool:
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
-def test_sweep_killed_with_kill_9_then_resumed(case, tmp_path):
+def test_sweep_killed_with_kill_9_then_resumed(case, tmp_path, capsys):
     """``kill -9`` of the sweep while VICTIM hangs and two runs have finished: the finished runs stay
     byte-identical, the workers die with the sweep, ``--resume`` runs exactly the unfinished one."""
     spec, _, clean = case
@@ -213,11 +213,13 @@ def test_sweep_killed_with_kill_9_then_resumed(case, tmp_path):
         for pid in workers:
             if _alive(pid):
                 os.kill(pid, signal.SIGKILL)
-    assert not (out / "runs" / VICTIM).exists()            # nothing of the killed run under its name
+    assert not (out / "runs" / VICTIM).exists()            # nothing of the killed run under its name,
+    assert any(f"runs/.{VICTIM}.tmp-" in p for p in leftovers(out))   # only its half-done temporary dir
     assert not (out / "summary.json").exists()
     for rid, h in before.items():
         assert file_hashes(out, rid) == h
     assert sweep(spec, out, "--resume") == 0
+    assert "3/3 runs ok, 2 skipped (already finished)" in capsys.readouterr().out   # exactly VICTIM ran
     assert summary(out) == clean
     for rid, h in before.items():
         assert file_hashes(out, rid) == h
