@@ -1,5 +1,5 @@
 """`monorarp sweep` under faults: a worker killed mid-run, a hung run, a full disk, a lost Ray
-worker, the whole sweep killed with ``kill -9``.
+worker, a lost Ray node, the whole sweep killed with ``kill -9``.
 
 Each test injects its fault into a real, tiny sweep (oracle detector, 160x96, 3 frames,
 3 runs) through the test-only ``MONORARP_FAULT`` hook (:mod:`harness.sweep.faults`), then
@@ -161,6 +161,42 @@ def test_ray_worker_lost(case, tmp_path, monkeypatch, capsys):
     assert sweep(case[0], out, "--resume", "--executor", "ray", "--workers", "2") == 1
     monkeypatch.delenv("MONORARP_FAULT")
     check_failed_then_resume(case, out, "ray task failed: The worker died", before, capsys)
+
+
+@pytest.mark.slow
+def test_ray_node_lost(case, tmp_path, monkeypatch, capsys):
+    """A whole Ray node goes away mid-sweep (``ray.cluster_utils.Cluster``: a head without CPUs and
+    two 1-CPU nodes on this machine). VICTIM hangs; once the other runs are written both worker
+    nodes are removed: VICTIM fails with Ray's node-death cause, nothing else is lost."""
+    pytest.importorskip("ray", reason="Ray is not installed (optional extra: pip install '.[ray]')")
+    import threading
+
+    from ray.cluster_utils import Cluster
+
+    out = tmp_path / "out"
+    before = {FIRST: prefilled(case, out)}
+    monkeypatch.setenv("MONORARP_FAULT", f"hang:{VICTIM}")
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0})
+    try:
+        nodes = [cluster.add_node(num_cpus=1) for _ in range(2)]
+        cluster.wait_for_nodes()
+        removed = threading.Event()
+
+        def lose_nodes() -> None:
+            deadline = time.monotonic() + 240
+            while not (out / "runs" / OTHER / "run.json").is_file() and time.monotonic() < deadline:
+                time.sleep(0.2)
+            for n in nodes:
+                cluster.remove_node(n)
+            removed.set()
+
+        threading.Thread(target=lose_nodes, daemon=True).start()
+        assert sweep(case[0], out, "--resume", "--executor", "ray", "--address", cluster.address) == 1
+        assert removed.is_set()
+    finally:
+        cluster.shutdown()
+    monkeypatch.delenv("MONORARP_FAULT")
+    check_failed_then_resume(case, out, "the node it was running on is dead", before, capsys)
 
 
 def _children(pid: int) -> list[int]:
