@@ -30,6 +30,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from harness.run import OUTPUT_NAMES
 from harness.sweep.summary import deterministic_metrics
 from monorarp.cli import main
 
@@ -149,6 +150,8 @@ def test_full_disk_while_writing(case, tmp_path, monkeypatch, capsys, free_bytes
     monkeypatch.delenv("MONORARP_FAULT")
     err = json.loads((out / "runs" / VICTIM / "error.json").read_text())
     assert "Errno 28" in err["error"] and "OSError" in err["traceback"]
+    named = err["error"].split("while writing ", 1)[1].split(" ", 1)[0]
+    assert named in OUTPUT_NAMES                       # 0 bytes: camera.json; 2500: metrics.json (today)
     check_failed_then_resume(case, out, "no space left on device while writing", before, capsys)
 
 

@@ -27,7 +27,7 @@ from harness.scorecard import score
 from harness.scorecard.protocols import ProtocolError, Trial, expand_protocol, load_protocol
 from harness.sweep.executors import Executor, make_executor
 from harness.sweep.expand import RunTask, _inject_seeds, sanitize
-from harness.sweep.orchestrate import finished, prepare_out_dir
+from harness.sweep.orchestrate import clean_leftovers, finished, prepare_out_dir
 from harness.sweep.spec import Variant
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
 
@@ -146,6 +146,7 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
                 bar.update(1)
         finally:
             bar.close()
+        clean_leftovers(runs_dir)        # what a dead worker left half-written
     finally:
         getattr(ex, "close", lambda: None)()
     from harness.sweep.summary import collect_rows, write_summary
