@@ -340,8 +340,9 @@ def test_leftovers_of_a_killed_sweep_are_removed_and_a_renamed_run_restored(tmp_
 def test_bad_run_timeout_is_refused(case, tmp_path, capsys, value):
     out = tmp_path / "out"
     assert sweep(case[0], out, "--run-timeout", value) == 2
-    err = capsys.readouterr().err.strip()
-    assert "--run-timeout" in err and len(err.splitlines()) == 1 and not out.exists()
+    assert main(["scorecard", "--out", str(out), "--run-timeout", value, "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all("--run-timeout" in line for line in err) and not out.exists()
 
 
 def test_fault_hook_is_inert_unless_set(monkeypatch):
@@ -355,3 +356,22 @@ def test_fault_hook_is_inert_unless_set(monkeypatch):
     monkeypatch.setenv(faults.ENV, f"explode:{VICTIM}")
     with pytest.raises(ValueError, match="MONORARP_FAULT"):
         faults.planned(VICTIM)
+
+
+def test_scorecard_passes_run_timeout_to_its_executor(tmp_path):
+    from harness.scorecard.run import ScorecardOptions, run_scorecard
+    from harness.sweep.executors import ExecutorError, make_executor
+    from harness.sweep.pool import ProcessExecutor
+
+    seen = {}
+
+    def make(*args, **kw):
+        seen["executor"] = make_executor(*args, **kw)
+        raise ExecutorError("stop here")
+
+    with pytest.raises(ExecutorError):
+        run_scorecard(tmp_path / "out", ScorecardOptions(suites=("nominal",), detector="oracle", run_timeout_s=7.5),
+                      make=make)
+    ex = seen["executor"]
+    assert isinstance(ex, ProcessExecutor) and ex.workers == 1 and ex.run_timeout_s == 7.5
+    assert not (tmp_path / "out").exists()

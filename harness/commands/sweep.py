@@ -12,6 +12,7 @@ import argparse
 from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
+from harness.commands.timeout_args import add_run_timeout_argument, check_run_timeout
 from monorarp.errors import UserError
 
 
@@ -33,9 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", action="store_true",
                    help="skip runs already finished in DIR with the same parameters (also after the sweep was "
                         "killed: what it left half-done is removed and run again)")
-    p.add_argument("--run-timeout", type=float, default=None, metavar="S",
-                   help="end a run that takes longer than S seconds and record it as failed ('timeout after S s'); "
-                        "local runs then go to worker processes even with --workers 1 (default: no limit)")
+    add_run_timeout_argument(p)
     p.add_argument("--videos", action="store_true", help="also write annotated.mp4 for every run (slower)")
     add_cache_arguments(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -47,8 +46,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.workers < 1:
         raise UserError(f"--workers: must be a positive integer, got {args.workers}")
-    if args.run_timeout is not None and not (args.run_timeout > 0 and args.run_timeout < float("inf")):
-        raise UserError(f"--run-timeout: must be a positive number of seconds, got {args.run_timeout:g}")
+    check_run_timeout(args.run_timeout)
     if args.address is not None and args.executor != "ray":
         raise UserError("--address is only for --executor ray")
     res = run_sweep(args.spec, args.out, executor=args.executor, workers=args.workers, resume=args.resume,

@@ -52,6 +52,7 @@ class ScorecardOptions:
     address: str | None = None
     resume: bool = False
     progress: bool = True
+    run_timeout_s: float | None = None           # a run taking longer is ended and fails (see harness.sweep.pool)
 
 
 def protocol_paths(opts: ScorecardOptions) -> list[Path]:
@@ -135,7 +136,8 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
 
     out = Path(out)
     trials, tasks = build_tasks(opts)
-    ex = make(opts.executor, opts.workers, opts.address)
+    ex = make(opts.executor, opts.workers, opts.address,
+              **({} if opts.run_timeout_s is None else {"run_timeout_s": opts.run_timeout_s}))
     getattr(ex, "start", lambda: None)()
     try:
         runs_dir = prepare_out_dir(out, opts.resume)
