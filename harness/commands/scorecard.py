@@ -16,6 +16,8 @@ SUITE_CHOICES = ("nhtsa", "ncap", "cut_in", "nominal", "risk", "all")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from harness.commands.timeout_args import add_run_timeout_argument
+
     p = sub.add_parser(
         "scorecard", help="run the FCW test protocols (NHTSA, Euro NCAP, cut-ins), false alarms, risk family",
         description="Run the collision-warning protocols of scenarios/fcw/ (or --protocol files), score the "
@@ -38,6 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, default=1, metavar="N", help="parallel runs (default 1)")
     p.add_argument("--address", default=None, metavar="auto|HOST:PORT", help="Ray cluster (with --executor ray)")
     p.add_argument("--resume", action="store_true", help="skip runs already finished in DIR")
+    add_run_timeout_argument(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -46,8 +49,11 @@ def run(args: argparse.Namespace) -> int:
     from harness.scorecard.report import console_table
     from harness.scorecard.run import SUITES, ScorecardOptions, run_scorecard
 
+    from harness.commands.timeout_args import check_run_timeout
+
     if args.workers < 1:
         raise UserError(f"--workers: must be a positive integer, got {args.workers}")
+    check_run_timeout(args.run_timeout)
     if args.warning_threshold is not None and not 0 < args.warning_threshold <= 10:
         raise UserError(f"--warning-threshold: must be in (0, 10] s, got {args.warning_threshold}")
     if args.protocol and args.suite:
@@ -59,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
                             warning_kwargs={} if args.warning_threshold is None else
                             {"ttc_threshold_s": args.warning_threshold},
                             executor=args.executor, workers=args.workers, address=args.address,
-                            resume=args.resume, progress=not args.no_progress)
+                            resume=args.resume, progress=not args.no_progress, run_timeout_s=args.run_timeout)
     card = run_scorecard(args.out, opts)
     print(console_table(card))
     print(f"wrote {args.out}/scorecard.json, report.html")

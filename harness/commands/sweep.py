@@ -1,8 +1,9 @@
 """``monorarp sweep SPEC.yaml --out DIR``: run every scenario x seed x grid x variant of a sweep spec.
 
 Exit status: 0 all runs finished, 1 some run failed (the others still ran and
-are summarised), 2 bad input (spec, output directory, executor) — then no run
-started.
+are summarised; a run whose worker died or that overran ``--run-timeout`` is one
+of them, with its cause), 2 bad input (spec, output directory, executor) — then no
+run started — or a summary that could not be written (e.g. a full disk).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import argparse
 from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
+from harness.commands.timeout_args import add_run_timeout_argument, check_run_timeout
 from monorarp.errors import UserError
 
 
@@ -30,7 +32,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--address", default=None, metavar="auto|HOST:PORT",
                    help="Ray cluster to connect to (with --executor ray); default: start a local Ray instance")
     p.add_argument("--resume", action="store_true",
-                   help="skip runs already finished in DIR with the same parameters")
+                   help="skip runs already finished in DIR with the same parameters (also after the sweep was "
+                        "killed: what it left half-done is removed and run again)")
+    add_run_timeout_argument(p)
     p.add_argument("--videos", action="store_true", help="also write annotated.mp4 for every run (slower)")
     add_cache_arguments(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -42,11 +46,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.workers < 1:
         raise UserError(f"--workers: must be a positive integer, got {args.workers}")
+    check_run_timeout(args.run_timeout)
     if args.address is not None and args.executor != "ray":
         raise UserError("--address is only for --executor ray")
     res = run_sweep(args.spec, args.out, executor=args.executor, workers=args.workers, resume=args.resume,
                     address=args.address, videos=args.videos, progress=not args.no_progress,
-                    cache=lambda: cache_from_args(args))
+                    cache=lambda: cache_from_args(args), run_timeout_s=args.run_timeout)
     n = len(res.rows)
     ok = n - len(res.failed)
     skipped = f", {len(res.skipped)} skipped (already finished)" if res.skipped else ""

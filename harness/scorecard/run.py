@@ -27,7 +27,7 @@ from harness.scorecard import score
 from harness.scorecard.protocols import ProtocolError, Trial, expand_protocol, load_protocol
 from harness.sweep.executors import Executor, make_executor
 from harness.sweep.expand import RunTask, _inject_seeds, sanitize
-from harness.sweep.orchestrate import finished, prepare_out_dir
+from harness.sweep.orchestrate import clean_leftovers, finished, prepare_out_dir
 from harness.sweep.spec import Variant
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
 
@@ -52,6 +52,7 @@ class ScorecardOptions:
     address: str | None = None
     resume: bool = False
     progress: bool = True
+    run_timeout_s: float | None = None           # a run taking longer is ended and fails (see harness.sweep.pool)
 
 
 def protocol_paths(opts: ScorecardOptions) -> list[Path]:
@@ -135,7 +136,8 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
 
     out = Path(out)
     trials, tasks = build_tasks(opts)
-    ex = make(opts.executor, opts.workers, opts.address)
+    ex = make(opts.executor, opts.workers, opts.address,
+              **({} if opts.run_timeout_s is None else {"run_timeout_s": opts.run_timeout_s}))
     getattr(ex, "start", lambda: None)()
     try:
         runs_dir = prepare_out_dir(out, opts.resume)
@@ -146,6 +148,7 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
                 bar.update(1)
         finally:
             bar.close()
+        clean_leftovers(runs_dir)        # what a dead worker left half-written
     finally:
         getattr(ex, "close", lambda: None)()
     from harness.sweep.summary import collect_rows, write_summary

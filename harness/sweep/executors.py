@@ -1,17 +1,19 @@
 """Executors: run a list of :class:`RunTask` and yield each :class:`RunOutcome` as it completes.
 
 * :class:`SerialExecutor` — in this process, one run after the other (``--workers 1``).
-* :class:`ProcessExecutor` — a ``concurrent.futures`` process pool started with
-  ``forkserver`` (``spawn`` where unavailable): worker processes never inherit a
-  forked copy of this process (an EGL context must not cross a fork); workers
+* :class:`~harness.sweep.pool.ProcessExecutor` — N worker processes started with
+  ``spawn``: worker processes never inherit a forked copy of this process (an EGL
+  context must not cross a fork), and die with it (``PR_SET_PDEATHSIG``); workers
   are reused across runs and each gets ``cpu_count // workers`` threads for
   OpenCV/BLAS/ONNX Runtime so that N workers do not oversubscribe the cores.
+  Used for ``--workers 1`` too when a per-run timeout is set.
 * :class:`RayExecutor` — tasks on a Ray cluster (``--address``) or on a local
   Ray instance; workers return the run's files and the driver writes them, so
   a multi-machine cluster needs no shared filesystem.
 
 Every executor gives the same metrics: a run is a pure function of its task.
-A worker process that dies (segfault, OOM) fails its run, not the sweep.
+A worker process that dies (SIGKILL, segfault, OOM) or overruns ``run_timeout_s`` fails
+its run, with the cause, not the sweep; the other runs go on.
 
 With a frame cache (:mod:`harness.frame_cache`), the parallel executors hand out
 tasks through :class:`RenderOnceQueue`: the first run of each scenario instance
@@ -21,17 +23,16 @@ read them from the cache); meanwhile the other workers render other instances.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import socket
 from collections import deque
 from collections.abc import Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Protocol
 
-from harness.sweep import worker
+from harness.sweep import faults, worker
 from harness.sweep.expand import RunTask
+from harness.sweep.pool import ProcessExecutor, record_failure
 from harness.sweep.worker import RunOutcome
 from monorarp.errors import UserError
 
@@ -48,8 +49,7 @@ class Executor(Protocol):
 
 
 def _record_crash(task: RunTask, runs_dir: Path, error: str) -> RunOutcome:
-    worker.write_run_files(runs_dir, task.id, worker.failed_outcome_files(task, error))
-    return RunOutcome(task.id, "failed", error)
+    return record_failure(task, runs_dir, error)
 
 
 class RenderOnceQueue:
@@ -112,52 +112,6 @@ def _init_process(threads: int) -> None:
         cv2.setNumThreads(threads)
     except Exception:  # noqa: BLE001 - best effort
         pass
-
-
-def _mp_context() -> multiprocessing.context.BaseContext:
-    methods = multiprocessing.get_all_start_methods()
-    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
-
-
-class ProcessExecutor:
-    def __init__(self, workers: int) -> None:
-        if workers < 1:
-            raise ExecutorError(f"--workers must be >= 1, got {workers}")
-        self.workers = workers
-
-    def run(self, tasks: Sequence[RunTask], runs_dir: Path) -> Iterator[RunOutcome]:
-        threads = max(1, (os.cpu_count() or 1) // self.workers)
-        queue = RenderOnceQueue(tasks)
-        window = 2 * self.workers if queue.grouped else max(1, len(tasks))   # tasks in the pool at a time
-        with ProcessPoolExecutor(max_workers=self.workers, mp_context=_mp_context(),
-                                 initializer=_init_process, initargs=(threads,)) as pool:
-            pending: dict[Future, RunTask] = {}
-
-            def fill() -> list[RunOutcome]:
-                crashed = []
-                while len(pending) < window and (task := queue.next()) is not None:
-                    try:
-                        pending[pool.submit(worker.execute, task, str(runs_dir))] = task
-                    except Exception as e:  # noqa: BLE001 - the pool broke (a worker died)
-                        queue.done(task)
-                        crashed.append(_record_crash(task, runs_dir, f"worker failed: {type(e).__name__}: {e}"))
-                return crashed
-
-            try:
-                yield from fill()
-                while pending:
-                    done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                    for fut in sorted(done, key=lambda f: pending[f].index):
-                        task = pending.pop(fut)
-                        queue.done(task)
-                        try:
-                            yield fut.result()
-                        except Exception as e:  # noqa: BLE001 - worker died (BrokenProcessPool) etc.
-                            yield _record_crash(task, runs_dir, f"worker failed: {type(e).__name__}: {e}")
-                    yield from fill()
-            finally:
-                for fut in pending:
-                    fut.cancel()
 
 
 # ---------------------------------------------------------------------- ray
@@ -231,7 +185,8 @@ def probe(address: str, timeout_s: float = 3.0) -> None:
 class RayExecutor:
     """Ray tasks (1 CPU each). ``address=None`` starts a local instance with ``workers`` CPUs."""
 
-    def __init__(self, workers: int, address: str | None = None, probe_timeout_s: float = 3.0) -> None:
+    def __init__(self, workers: int, address: str | None = None, probe_timeout_s: float = 3.0,
+                 run_timeout_s: float | None = None) -> None:
         try:
             import ray  # noqa: F401
         except ImportError:
@@ -239,6 +194,7 @@ class RayExecutor:
         if workers < 1:
             raise ExecutorError(f"--workers must be >= 1, got {workers}")
         self.workers = workers
+        self.run_timeout_s = run_timeout_s
         self.address = None
         if address is not None:   # checked now, before any run starts
             self.address = resolve_auto_address() if address == "auto" else address
@@ -263,6 +219,8 @@ class RayExecutor:
             return False
         # one CPU per task: one rasteriser thread (Ray itself sets OMP_NUM_THREADS=1 for such tasks)
         env = {"env_vars": {"PYOPENGL_PLATFORM": os.environ.get("PYOPENGL_PLATFORM", "egl"), "LP_NUM_THREADS": "1"}}
+        if os.environ.get(faults.ENV):                  # test-only fault injection reaches the workers
+            env["env_vars"][faults.ENV] = os.environ[faults.ENV]
         if self.address is None:
             ray.init(num_cpus=self.workers, include_dashboard=False, log_to_driver=False, runtime_env=env,
                      configure_logging=False)
@@ -275,42 +233,76 @@ class RayExecutor:
         return True
 
     def run(self, tasks: Sequence[RunTask], runs_dir: Path) -> Iterator[RunOutcome]:
+        """Submit, collect, write. A task whose worker or node is lost fails with Ray's cause (no retry:
+        ``--resume`` runs it again); with ``run_timeout_s`` a task running longer is cancelled (its worker
+        killed) and fails with "timeout after S s" -- timed from submission, so then no more tasks are in
+        flight than the cluster has CPUs."""
+        import time
+
         import ray
 
         if not hasattr(self, "_started"):
             self.start()
+        pending: dict = {}
         try:
             remote = ray.remote(num_cpus=1, max_retries=0)(worker.execute_detached)
             queue = RenderOnceQueue(tasks)
-            cpus = int(ray.cluster_resources().get("CPU", self.workers)) if queue.grouped else 0
-            window = 2 * max(self.workers, cpus) if queue.grouped else max(1, len(tasks))
-            pending: dict = {}
+            limited = queue.grouped or self.run_timeout_s is not None
+            cpus = int(ray.cluster_resources().get("CPU", self.workers)) if limited else 0
+            if self.run_timeout_s is not None:
+                window = max(1, cpus)
+            else:
+                window = 2 * max(self.workers, cpus) if queue.grouped else max(1, len(tasks))
+            started: dict = {}
             while True:
                 while len(pending) < window and (task := queue.next()) is not None:
-                    pending[remote.remote(task)] = task
+                    ref = remote.remote(task)
+                    pending[ref], started[ref] = task, time.monotonic()
                 if not pending:
                     break
-                done, _ = ray.wait(list(pending), num_returns=1)
+                timeout = None
+                if self.run_timeout_s is not None:
+                    timeout = max(0.0, min(started[r] for r in pending) + self.run_timeout_s - time.monotonic())
+                done, _ = ray.wait(list(pending), num_returns=1, timeout=timeout)
+                now = time.monotonic()
+                overdue = [] if done or self.run_timeout_s is None else \
+                    [r for r in pending if now - started[r] >= self.run_timeout_s]
+                for ref in overdue:
+                    ray.cancel(ref, force=True)
+                    task = pending.pop(ref)
+                    queue.done(task)
+                    yield record_failure(task, runs_dir, f"timeout after {self.run_timeout_s:g} s (task cancelled)")
                 for ref in done:
                     task = pending.pop(ref)
                     queue.done(task)
                     try:
                         outcome, files = ray.get(ref)
                     except Exception as e:  # noqa: BLE001 - worker crashed / node lost
-                        yield _record_crash(task, runs_dir, f"ray task failed: {' '.join(str(e).split())[:500]}")
+                        yield record_failure(task, runs_dir, f"ray task failed: {' '.join(str(e).split())[:500]}")
                         continue
-                    worker.write_run_files(runs_dir, task.id, files)
+                    try:
+                        worker.write_run_files(runs_dir, task.id, files)
+                    except OSError as e:     # e.g. the driver's disk is full
+                        yield record_failure(task, runs_dir, f"cannot write the run's files: {worker.describe_error(e)}")
+                        continue
                     yield outcome
         finally:
-            for ref in list(locals().get("pending", {})):
+            for ref in pending:
                 ray.cancel(ref, force=True)
 
 
-def make_executor(kind: str, workers: int, address: str | None = None) -> Executor:
+def make_executor(kind: str, workers: int, address: str | None = None,
+                  run_timeout_s: float | None = None) -> Executor:
+    """``run_timeout_s``: per-run limit in seconds (None: none); a local sweep then runs in worker processes
+    even with ``workers == 1`` (a run in the calling process cannot be ended)."""
+    if run_timeout_s is not None and not run_timeout_s > 0:
+        raise ExecutorError(f"--run-timeout must be > 0 seconds, got {run_timeout_s}")
     if kind == "local":
         if address is not None:
             raise ExecutorError("--address is only for --executor ray")
-        return SerialExecutor() if workers == 1 else ProcessExecutor(workers)
+        if workers == 1 and run_timeout_s is None:
+            return SerialExecutor()
+        return ProcessExecutor(workers, run_timeout_s)
     if kind == "ray":
-        return RayExecutor(workers, address)
+        return RayExecutor(workers, address, run_timeout_s=run_timeout_s)
     raise ExecutorError(f"unknown executor {kind!r}; use local or ray")

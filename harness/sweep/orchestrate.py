@@ -5,11 +5,19 @@ Layout of ``DIR``::
     DIR/runs/<id>/     one directory per run (see :mod:`harness.sweep.worker`), each written atomically
     DIR/summary.json   DIR/summary.csv   (see :mod:`harness.sweep.summary`)
     DIR/report.html    (see :mod:`harness.sweep.report`)
+
+Faults: a run whose worker dies or overruns ``--run-timeout`` is recorded as failed
+with its cause (see :mod:`harness.sweep.pool`); runs that finished are never
+rewritten. After a ``kill -9`` of the sweep itself, ``--resume`` removes what the
+killed sweep left half-done (:func:`clean_leftovers`) and runs exactly the runs
+that are not finished.
 """
 
 from __future__ import annotations
 
 import json
+import re
+import shutil
 import sys
 import time
 from collections.abc import Callable
@@ -22,7 +30,7 @@ from harness.sweep.executors import Executor, make_executor
 from harness.sweep.expand import Expansion, RunTask, load_and_expand
 from harness.sweep.report import render_report
 from harness.sweep.summary import collect_rows, write_summary, write_text_atomic
-from harness.sweep.worker import METRICS_JSON, RUN_JSON, RunOutcome
+from harness.sweep.worker import METRICS_JSON, RUN_JSON, RunOutcome, describe_error
 
 if TYPE_CHECKING:
     from harness.frame_cache import FrameCache
@@ -58,6 +66,28 @@ def finished(task: RunTask, runs_dir: Path) -> bool:
     return run.get("status") == "ok" and run.get("params") == json.loads(json.dumps(task.params()))
 
 
+_OLD = re.compile(r"^\.(?P<id>[^.].*)\.old-[0-9a-f]{8}$")
+
+
+def clean_leftovers(runs_dir: Path) -> list[str]:
+    """Remove the temporary directories of runs that never committed (a killed worker or sweep).
+
+    A run directory renamed away for replacement (``.ID.old-*``) whose new version never
+    arrived is renamed back, so a finished run is never lost. Returns the names removed.
+    """
+    removed: list[str] = []
+    for p in sorted(runs_dir.iterdir()) if runs_dir.is_dir() else ():
+        if not p.name.startswith(".") or (".tmp-" not in p.name and ".old-" not in p.name):
+            continue
+        m = _OLD.match(p.name)
+        if m and ".tmp-" not in m["id"] and p.is_dir() and not (runs_dir / m["id"]).exists():
+            p.rename(runs_dir / m["id"])
+            continue
+        shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
+        removed.append(p.name)
+    return removed
+
+
 def prepare_out_dir(out: Path, resume: bool) -> Path:
     if out.exists() and not out.is_dir():
         raise OutputError(f"{out}: output path exists and is not a directory")
@@ -74,9 +104,22 @@ def prepare_out_dir(out: Path, resume: bool) -> Path:
     runs = out / RUNS
     try:
         runs.mkdir(parents=True, exist_ok=True)
+        if resume:
+            clean_leftovers(runs)
+            for p in out.glob(".*.tmp"):       # a summary or report being written when the sweep was killed
+                p.unlink(missing_ok=True)
     except OSError as e:
         raise OutputError(f"{out}: cannot create output directory ({e.strerror or e})") from None
     return runs
+
+
+def with_outcomes(rows: list[dict], executed: list[RunOutcome]) -> list[dict]:
+    """Rows whose run left no record on disk (e.g. a full disk refused it) take this sweep's outcome."""
+    failed = {o.id: o.error for o in executed if o.status != "ok"}
+    for r in rows:
+        if r["status"] == "missing" and r["id"] in failed:
+            r["status"], r["error"] = "failed", failed[r["id"]] or "failed"
+    return rows
 
 
 def _progress(total: int, enabled: bool):
@@ -88,15 +131,19 @@ def _progress(total: int, enabled: bool):
 def run_sweep(spec_path: str | Path, out: str | Path, *, executor: str = "local", workers: int = 1,
               resume: bool = False, address: str | None = None, videos: bool = False, progress: bool = True,
               make: Callable[..., Executor] = make_executor,
-              cache: FrameCache | Callable[[], FrameCache | None] | None = None) -> SweepResult:
+              cache: FrameCache | Callable[[], FrameCache | None] | None = None,
+              run_timeout_s: float | None = None) -> SweepResult:
     """Run a sweep; raises :class:`~monorarp.errors.UserError` (nothing run) for a bad spec, output or executor.
+
+    ``run_timeout_s``: a run taking longer (seconds of wall time) is ended and recorded as failed.
 
     ``cache``: the frame cache every run reads and fills (or a callable giving it, called once the spec
     has been checked); None: every run renders its own frames.
     """
     t0 = time.perf_counter()
     out = Path(out)
-    ex = make(executor, workers, address)          # unreachable Ray address etc. fails here, in seconds
+    limit = {} if run_timeout_s is None else {"run_timeout_s": run_timeout_s}
+    ex = make(executor, workers, address, **limit)  # unreachable Ray address etc. fails here, in seconds
     expansion = load_and_expand(spec_path, annotate=videos)
     cache = cache() if callable(cache) else cache   # an unusable cache directory fails here, before any run
     if cache is not None:
@@ -127,11 +174,17 @@ def _run(ex: Executor, expansion: Expansion, spec_path: str | Path, out: Path, r
     finally:
         bar.close()
     spec = expansion.spec
-    result.rows = collect_rows(tasks, runs_dir)
-    write_summary(out, result.rows, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),
-                  headline=spec.metrics)
-    write_text_atomic(out / REPORT_HTML, render_report(result.rows, runs_dir, name=spec.name, spec_path=str(spec_path),
-                                                       grid_keys=list(spec.grid), headline=spec.metrics,
-                                                       threshold_s=spec.warning_threshold_s))
+    clean_leftovers(runs_dir)                 # every worker has ended: what a dead one left is garbage
+    result.rows = with_outcomes(collect_rows(tasks, runs_dir), result.executed)
+    try:
+        write_summary(out, result.rows, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),
+                      headline=spec.metrics)
+        write_text_atomic(out / REPORT_HTML, render_report(result.rows, runs_dir, name=spec.name,
+                                                           spec_path=str(spec_path), grid_keys=list(spec.grid),
+                                                           headline=spec.metrics, threshold_s=spec.warning_threshold_s))
+    except OSError as e:
+        n_ok = sum(r["status"] == "ok" for r in result.rows)
+        raise OutputError(f"{out}: cannot write the summary ({describe_error(e)}); the {n_ok} finished runs under "
+                          f"{runs_dir} are intact: free space, then rerun with --resume") from None
     result.wall_time_s = time.perf_counter() - t0
     return result

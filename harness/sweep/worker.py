@@ -12,7 +12,9 @@ to its functions into fresh worker processes.
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import shutil
 import tempfile
 import time
@@ -20,6 +22,7 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.sweep import faults
 from harness.sweep.expand import RunTask
 
 RUN_JSON = "run.json"
@@ -45,6 +48,15 @@ def _one_line(e: BaseException) -> str:
     return " ".join(f"{type(e).__name__}: {e}".split())
 
 
+def describe_error(e: BaseException) -> str:
+    """One line for a run's error; a full disk is named as such, with the file being written."""
+    if isinstance(e, OSError) and e.errno in (errno.ENOSPC, errno.EDQUOT):
+        name = Path(str(e.filename)).name if e.filename else ""
+        name = re.sub(r"^\.(.+)\.[^.]+\.tmp$", r"\1", name)      # temp file of an atomic write -> its target
+        return f"no space left on device{f' while writing {name}' if name else ''} ({_one_line(e)})"
+    return _one_line(e)
+
+
 def run_into(task: RunTask, out: Path) -> RunOutcome:
     """Run ``task`` writing its files into the existing empty directory ``out``; never raises for run errors."""
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -65,13 +77,15 @@ def run_into(task: RunTask, out: Path) -> RunOutcome:
                 from harness.frame_cache import FrameCache
 
                 extra["cache"] = FrameCache(task.cache_dir, task.cache_max_bytes)
-            hrun.run_scenario(scenario, task.pipeline, n_frames=n, out_dir=out, annotate=task.annotate,
-                              write_frames=False, eval_config=EvalConfig(warning_threshold_s=task.warning_threshold_s),
-                              **extra)
+            with faults.writing(task.id):
+                hrun.run_scenario(scenario, task.pipeline, n_frames=n, out_dir=out, annotate=task.annotate,
+                                  write_frames=False,
+                                  eval_config=EvalConfig(warning_threshold_s=task.warning_threshold_s), **extra)
             if not (out / METRICS_JSON).is_file():
                 raise RuntimeError("the run finished without writing metrics.json")
+            faults.before_commit(task.id)
         except Exception as e:  # noqa: BLE001 - recorded; the sweep goes on
-            error, tb = _one_line(e), traceback.format_exc()
+            error, tb = describe_error(e), traceback.format_exc()
     wall = time.perf_counter() - t0
     if error is not None:
         for p in out.iterdir():      # nothing half-done stays next to error.json
