@@ -85,13 +85,15 @@ whose box gives no distance or no lateral distance is not output until it does.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
-from monorarp.camera import CameraModel
+from monorarp.camera import CameraError, CameraModel
 from monorarp.registry import register
-from monorarp.types import ObjectState, Track
+from monorarp.types import HorizonReading, ObjectState, Track
 
 BORDER_TOL_PX = 4.0   # a box edge this close to the image border (px) is taken as cut by it
 
@@ -292,6 +294,10 @@ class StateEstimator:
             ``ObjectState.v_x_std``, while the box is cut by a side border (the lateral reading is then
             the near-edge model's, biased as the vehicle leaves the view).
         forget_s: a track id unseen for this long (s) loses its history.
+        contact_offset_std_m: one-sigma of the contact-line offset (m; rear overhangs of 0.8--1.1 m give
+            0.09), added to ``d_y_std`` (not to the filter: it is a per-vehicle bias, not noise).
+        horizon_std_px: one-sigma (px) of the calibrated horizon row when no horizon reading is given
+            (the pitch the mount lets wander); added to ``d_y_std`` through ``d d_y / d row``.
         reinit_sigmas: a measurement this many sigmas of its innovation away from the prediction
             (either axis) restarts the track's filter at the measurement with the wide prior, as a
             new sighting: a jump of that size is the tracker's box moving to another vehicle (or to
@@ -304,7 +310,8 @@ class StateEstimator:
                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17, max_coast_used: int = 2,
                  init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0,
                  vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX,
-                 side_cut_lateral_std_mps: float = 2.0, reinit_sigmas: float = 5.0) -> None:
+                 side_cut_lateral_std_mps: float = 2.0, reinit_sigmas: float = 5.0,
+                 contact_offset_std_m: float = 0.09, horizon_std_px: float = 0.0) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -322,6 +329,11 @@ class StateEstimator:
         if not reinit_sigmas > 0:
             raise ValueError(f"reinit_sigmas must be > 0, got {reinit_sigmas}")
         self.reinit_sigmas = float(reinit_sigmas)
+        for name, val in (("contact_offset_std_m", contact_offset_std_m), ("horizon_std_px", horizon_std_px)):
+            if not (np.isfinite(val) and val >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {val}")
+        self.contact_offset_std_m, self.horizon_std_px = float(contact_offset_std_m), float(horizon_std_px)
+        self._extra_px_var = 0.0      # this frame's white horizon noise (px^2), added to the measurement's
         n = 2 if motion == "cv" else 3
         self._prior_var = np.array([0.0, init_vel_std ** 2, init_acc_std ** 2][:n])
         self.forget_s = float(forget_s)
@@ -388,12 +400,52 @@ class StateEstimator:
         adds the far edge's column error and the share of the distance error.
         """
         d_x, d_y = z[:, 0], np.maximum(z[:, 1], 0.1)
-        s_y = d_y ** 2 / (self.camera.height_m * self.camera.fy) * self.pixel_std + 0.01
-        s_x = d_y / self.camera.fx * self.pixel_std + np.abs(d_x) / d_y * s_y + 0.01
+        px = np.sqrt(self.pixel_std ** 2 + self._extra_px_var)
+        s_y = d_y ** 2 / (self.camera.height_m * self.camera.fy) * px + 0.01
+        s_x = d_y / self.camera.fx * px + np.abs(d_x) / d_y * s_y + 0.01
         return np.stack([s_x, s_y], axis=1) ** 2
 
-    def update(self, tracks: Sequence[Track], t: float) -> dict[int, ObjectState]:
-        """Estimate every usable track's relative state at frame time ``t`` (s); ValueError on a non-finite ``t``."""
+    def horizon_gain(self, d_y: np.ndarray) -> np.ndarray:
+        """``|d d_y / d row|`` (m/px): distance change per pixel of horizon-row error.
+
+        The contact line's ground distance ``Y = d_y + contact_offset_m`` seen at depression
+        angle ``a`` below the horizon (``Y = h_c cot a``) changes by ``(Y^2 + h_c^2) / h_c`` per
+        radian, and one row is ``1 / fy`` rad near the principal point.
+        """
+        Y = np.asarray(d_y, dtype=float) + self.contact_offset_m
+        h = self.camera.height_m
+        return (Y * Y + h * h) / (h * self.camera.fy)
+
+    def distance_std(self, d_y: np.ndarray, filter_std: np.ndarray, horizon_std_px: float) -> np.ndarray:
+        """One-sigma of ``d_y`` (m): the filter's, the horizon's (``horizon_std_px`` through
+        :meth:`horizon_gain`) and the contact line's, in quadrature."""
+        return np.sqrt(filter_std ** 2 + (self.horizon_gain(d_y) * horizon_std_px) ** 2
+                       + self.contact_offset_std_m ** 2)
+
+    def update(self, tracks: Sequence[Track], t: float, horizon: HorizonReading | None = None) -> dict[int, ObjectState]:
+        """Estimate every usable track's relative state at frame time ``t`` (s); ValueError on a non-finite ``t``.
+
+        ``horizon``: this frame's horizon reading (:mod:`monorarp.horizon`): equation 3 then uses a
+        camera pitched to its row (the calibrated one when that row is impossible), the reading's
+        ``std_px`` widens ``d_y_std``, and a reading measured this frame (``"vanishing_point"``, white
+        noise) also widens the filter's measurement noise. None: the calibrated horizon with
+        ``horizon_std_px``.
+        """
+        if horizon is None:
+            return self._update(tracks, t, self.horizon_std_px)
+        nominal = self.camera
+        try:
+            try:
+                self.camera = replace(nominal, pitch_rad=math.atan((nominal.cy - float(horizon.row)) / nominal.fy))
+            except (CameraError, ValueError):
+                self.camera = nominal
+            if horizon.source == "vanishing_point":
+                self._extra_px_var = float(horizon.std_px) ** 2
+            return self._update(tracks, t, float(horizon.std_px))
+        finally:
+            self.camera, self._extra_px_var = nominal, 0.0
+
+    def _update(self, tracks: Sequence[Track], t: float, horizon_std_px: float) -> dict[int, ObjectState]:
         t = float(t)
         if not np.isfinite(t):
             raise ValueError(f"frame time must be finite, got {t}")
@@ -419,6 +471,7 @@ class StateEstimator:
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
+            std[:, 1] = self.distance_std(out[:, 1], std[:, 1], horizon_std_px)
             return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac))
                     for tid, row, sd, ac, good in zip(ids, out, std, acc if acc is not None else [None] * len(ids), ok)
                     if good}
