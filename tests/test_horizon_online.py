@@ -110,7 +110,7 @@ def _box_at(camera: CameraModel, d_rear: float, est: StateEstimator) -> np.ndarr
 
 def test_state_uses_the_reading_row_and_widens_its_interval():
     true = replace(NOMINAL, pitch_rad=NOMINAL.pitch_rad + math.radians(0.5))
-    est = StateEstimator(NOMINAL, contact_offset_std_m=0.0)
+    est = StateEstimator(NOMINAL, contact_offset_std_m=0.0, edge_std_px=0.0)
     box = _box_at(true, 30.0, est)
     plain = est.update([Track(1, tuple(box[0]))], 0.0)[1]
     est.reset()
