@@ -124,6 +124,14 @@ def test_state_uses_the_reading_row_and_widens_its_interval():
     assert est.camera is NOMINAL                                          # restored after the frame
 
 
+def test_side_cut_box_states_a_wider_interval():
+    est = StateEstimator(NOMINAL, edge_std_px=1.0, border_edge_std_px=3.0, contact_offset_std_m=0.0)
+    d = np.array([20.0, 20.0])
+    s = est.distance_std(d, np.zeros(2), 0.0, np.array([False, True]))
+    g = est.horizon_gain(d)
+    assert s == pytest.approx([g[0] * 1.0, g[1] * 3.0])
+
+
 def test_horizon_gain_matches_the_numeric_derivative():
     est = StateEstimator(NOMINAL)
     for d in (8.0, 20.0, 40.0):
