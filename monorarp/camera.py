@@ -87,13 +87,14 @@ class CameraModel:
         pitch_rad: float = 0.0,
         lateral_offset_m: float = 0.0,
         forward_offset_m: float = 0.0,
+        roll_rad: float = 0.0,
     ) -> "CameraModel":
         """Square pixels, principal point at the image centre, horizontal FOV in degrees."""
         if not 1.0 < hfov_deg < 179.0:
             raise CameraError(f"horizontal FOV must be in (1, 179) deg, got {hfov_deg}")
         f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
         return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0,
-                   height_m, pitch_rad, lateral_offset_m, forward_offset_m)
+                   height_m, pitch_rad, lateral_offset_m, forward_offset_m, roll_rad)
 
     def scaled(self, width: int, height: int) -> "CameraModel":
         """The same camera at another resolution (intrinsics scaled, mounting kept)."""

@@ -4,6 +4,7 @@ moved camera checked against cv2.projectPoints and the sky/road boundary with th
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -236,3 +237,15 @@ def test_rendered_horizon_is_the_true_tilted_one(moved_frames):
             assert boundary == pytest.approx(expect, abs=1.5), col
             off_nominal.append(abs(boundary - nominal.horizon_row))
         assert max(off_nominal) > 2.5                                # the nominal horizon does not fit
+
+
+def test_camera_roll_in_files_and_horizon_row():
+    cam = CameraModel.from_dict({"width": 640, "height": 360, "hfov_deg": 70, "height_m": 1.3,
+                                 "pitch_deg": 2.0, "roll_deg": 1.5})
+    assert cam.roll_rad == pytest.approx(math.radians(1.5))
+    assert CameraModel.from_dict(cam.to_dict()) == cam
+    assert "roll_rad" not in NOMINAL.to_dict()
+    vp = cam.K @ cam.R_cam_from_ego @ np.array([0.0, 1.0, 0.0])          # forward vanishing point
+    assert vp[1] / vp[2] == pytest.approx(cam.horizon_row, abs=1e-9)
+    with pytest.raises(Exception, match="roll"):
+        replace(NOMINAL, roll_rad=math.radians(40))
