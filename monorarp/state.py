@@ -448,7 +448,8 @@ class StateEstimator:
         px = np.hypot(horizon_std_px, edge)
         return np.sqrt(filter_std ** 2 + (self.horizon_gain(d_y) * px) ** 2 + self.contact_offset_std_m ** 2)
 
-    def update(self, tracks: Sequence[Track], t: float, horizon: HorizonReading | None = None) -> dict[int, ObjectState]:
+    def update(self, tracks: Sequence[Track], t: float,
+               horizon: HorizonReading | None = None) -> dict[int, ObjectState]:
         """Estimate every usable track's relative state at frame time ``t`` (s); ValueError on a non-finite ``t``.
 
         ``horizon``: this frame's horizon reading (:mod:`monorarp.horizon`): equation 3 then uses a

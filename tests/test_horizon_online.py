@@ -195,7 +195,8 @@ def test_pipeline_hands_the_reading_to_the_state_stage(runner):
 
 def test_no_horizon_stage_changes_nothing():
     state = _State()
-    res = list(run_sync(Pipeline(_Detector(), _Tracker(), state, _Risk()), [Frame(0, 0.0, np.zeros((4, 4, 3), np.uint8))]))
+    frame = Frame(0, 0.0, np.zeros((4, 4, 3), np.uint8))
+    res = list(run_sync(Pipeline(_Detector(), _Tracker(), state, _Risk()), [frame]))
     assert state.seen == [None] and res[0].horizon is None and "horizon" not in res[0].timings_ms
     assert PipelineConfig(detector={"name": "oracle"}).horizon is None
 
@@ -213,7 +214,8 @@ def test_interval_stats_counts_and_widths():
 
 def test_horizon_metrics_against_truth_rows():
     truths = [{"frame": 0, "camera": {"horizon_row": 160.0}}, {"frame": 1, "camera": {"horizon_row": 170.0}}]
-    results = [FrameResult(0, 0.0, [], [], {}, RiskEstimate(0.0), horizon=HorizonReading(161.0, 1.0, "vanishing_point")),
+    results = [FrameResult(0, 0.0, [], [], {}, RiskEstimate(0.0),
+                           horizon=HorizonReading(161.0, 1.0, "vanishing_point")),
                FrameResult(1, 0.1, [], [], {}, RiskEstimate(0.0), horizon=HorizonReading(165.0, 1.0, "held"))]
     m = horizon_metrics(truths, results, NOMINAL)
     assert m["abs_err_median_px"] == pytest.approx(3.0) and m["coverage_90"] == pytest.approx(0.5)
@@ -248,7 +250,8 @@ def test_cli_online_horizon_run(tmp_path, capsys):
 
 def test_cli_vibration_outside_the_image_exits_2(tmp_path, capsys):
     out = tmp_path / "o"
-    assert main(["run", str(_scenario_file(tmp_path, 8.0, pitch_deg=15.0)), "--detector", "oracle", "--out", str(out)]) == 2
+    bad = _scenario_file(tmp_path, 8.0, pitch_deg=15.0)
+    assert main(["run", str(bad), "--detector", "oracle", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "camera_motion.vibration.pitch_amplitude_deg" in err
     assert "Traceback" not in err and not out.exists()
