@@ -27,6 +27,15 @@ Definitions (ego and camera frames of :mod:`monorarp.camera`; road frame of
   vehicle (set at the first contact and kept from then on).
 
 One object per vehicle with at least one visible pixel, sorted by id.
+
+**A moving camera** (the scenario's ``camera_motion:`` block, :mod:`harness.camera_motion`):
+``d_long``, ``d_lat``, ``v_long``, ``v_lat`` and ``ttc`` stay in the road-aligned ego frame
+(origin at the camera, ``y`` along the ego's heading parallel to the road, ``z`` up): the
+distances the metrics compare do not move with the camera's pitch or roll. ``box`` and
+``corners_cam`` are in the frame's *true* camera. The record then carries
+``camera``: ``pitch_rad``, ``roll_rad`` (the true pose), ``horizon_row`` (px, the true
+forward vanishing point's row), ``pitch_offset_rad`` and ``horizon_offset_px`` (true minus
+nominal). ``camera.json`` holds the nominal calibration only, which is all the pipeline gets.
 """
 
 from __future__ import annotations
@@ -67,8 +76,10 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
     itself (then ``full_pixels`` comes from it). ``full_pixels`` (id -> unoccluded
     pixel count) is required for ``visibility``.
     """
+    nominal = camera
     if hasattr(id_mask, "id_mask"):
         full_pixels = id_mask.full_pixels if full_pixels is None else full_pixels
+        camera = getattr(id_mask, "camera", None) or camera    # the true camera of a moving mount
         id_mask = id_mask.id_mask
     if full_pixels is None:
         raise ValueError("frame_truth needs full_pixels (RenderedFrame.full_pixels) to compute visibility")
@@ -84,6 +95,10 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
                 "crashed": bool(ego.crashed)},
         "objects": [],
     }
+    if camera is not nominal:
+        from harness.camera_motion import pose_record
+
+        record["camera"] = pose_record(camera, nominal)
     if not vehicles:
         return record
     foot = vehicles_footprints_ego(vehicles, ego, camera)                        # (N, 4, 2)

@@ -71,18 +71,19 @@ def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pip
     cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
     onnx = cfg.detector.name.lower().endswith(".onnx")
     stages = {"detector": None if onnx else cfg.detector, "tracker": cfg.tracker, "state": cfg.state,
-              "risk": cfg.risk, "ego_speed": cfg.ego_speed, "warning": cfg.warning}
+              "risk": cfg.risk, "ego_speed": cfg.ego_speed, "warning": cfg.warning, "horizon": cfg.horizon}
     factories = {k: get_factory(k, c.name) for k, c in stages.items() if c is not None}
     built = {k: instantiate(f, stages[k].kwargs, camera) for k, f in factories.items()}
     if onnx:
         built["detector"] = load_detector(cfg.detector.name, camera=camera, **cfg.detector.kwargs)
     return Pipeline(detector=built["detector"], tracker=built["tracker"], state=built["state"],
-                    risk=built["risk"], ego_speed=built.get("ego_speed"), warning=built.get("warning"))
+                    risk=built["risk"], ego_speed=built.get("ego_speed"), warning=built.get("warning"),
+                    horizon=built.get("horizon"))
 
 
 def describe(cfg: PipelineConfig) -> dict:
     """Component names and kwargs for ``metrics["config"]``."""
-    comps = {k: getattr(cfg, k) for k in ("detector", "tracker", "state", "risk", "ego_speed", "warning")}
+    comps = {k: getattr(cfg, k) for k in ("detector", "tracker", "state", "risk", "ego_speed", "warning", "horizon")}
     return {"components": {k: c.name for k, c in comps.items() if c is not None},
             "component_kwargs": {k: jsonable(c.kwargs) for k, c in comps.items() if c is not None and c.kwargs}}
 

@@ -13,6 +13,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from harness.camera_motion import CameraMotion
 from harness.config_io import format_validation_error, read_yaml
 
 from monorarp.camera import CameraError, CameraModel
@@ -204,6 +205,8 @@ class Scenario(_Model):
     events: list[Event] = []
     camera: Camera = Camera()
     render: Render = Render()
+    camera_motion: CameraMotion | None = Field(None, description=(
+        "pitch/roll of the camera relative to the road per frame (harness.camera_motion); null: none"))
     end_on_contact_s: float | None = Field(None, ge=0, le=10, description=(
         "end the run this long (s) after the ego's first contact (crash flag); null: run the whole duration"))
 
@@ -215,6 +218,8 @@ class Scenario(_Model):
     def _consistent(self) -> "Scenario":
         if self.ego.lane >= self.road.lanes:
             raise ValueError(f"ego.lane {self.ego.lane} does not exist on a {self.road.lanes}-lane road")
+        if self.camera_motion is not None:
+            self.camera_motion.check(self.camera.model(), self.fps)
         names = [v.name for v in self.vehicles]
         dup = {n for n in names if names.count(n) > 1}
         if dup:

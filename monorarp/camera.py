@@ -8,9 +8,15 @@ Frames (all right-handed, SI units):
   The flat ground plane is ``z = -height_m``.
 * **Camera frame** (OpenCV): ``x`` right, ``y`` down, ``z`` along the optical
   axis. The camera is pitched down by ``pitch_rad`` about its ``x`` axis and has
-  no roll or yaw relative to the ego vehicle.
+  no yaw relative to the ego vehicle (roll: ``roll_rad``, below).
 * **Pixels** (OpenCV): ``u`` right, ``v`` down, pixel centres at integer
   coordinates, no distortion.
+
+Roll (``roll_rad``, default 0): the camera turned about its optical axis after the
+pitch, positive clockwise as seen from behind the camera (its right side dips;
+the scene turns counter-clockwise in the image). A calibration normally has no
+roll; the harness uses it for the *true* per-frame pose of a moving camera
+(:mod:`harness.camera_motion`).
 
 Mounting: the camera sits ``height_m`` above the ground, ``forward_offset_m``
 ahead of the ego vehicle's centre and ``lateral_offset_m`` to its right.
@@ -46,6 +52,7 @@ class CameraModel:
     pitch_rad: float = 0.0
     lateral_offset_m: float = 0.0
     forward_offset_m: float = 0.0
+    roll_rad: float = 0.0
 
     def __post_init__(self) -> None:
         problems = []
@@ -59,6 +66,8 @@ class CameraModel:
             problems.append(f"mounting height must be positive, got {self.height_m} m")
         if not abs(self.pitch_rad) < math.radians(45):
             problems.append(f"pitch must be within +-45 deg, got {math.degrees(self.pitch_rad):.1f} deg")
+        if not abs(self.roll_rad) < math.radians(30):
+            problems.append(f"roll must be within +-30 deg, got {math.degrees(self.roll_rad):.1f} deg")
         if not problems and not (0 <= self.horizon_row <= self.height - 1):
             problems.append(
                 f"horizon row {self.horizon_row:.1f} px lies outside the image (0..{self.height - 1}); "
@@ -78,13 +87,14 @@ class CameraModel:
         pitch_rad: float = 0.0,
         lateral_offset_m: float = 0.0,
         forward_offset_m: float = 0.0,
+        roll_rad: float = 0.0,
     ) -> "CameraModel":
         """Square pixels, principal point at the image centre, horizontal FOV in degrees."""
         if not 1.0 < hfov_deg < 179.0:
             raise CameraError(f"horizontal FOV must be in (1, 179) deg, got {hfov_deg}")
         f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
         return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0,
-                   height_m, pitch_rad, lateral_offset_m, forward_offset_m)
+                   height_m, pitch_rad, lateral_offset_m, forward_offset_m, roll_rad)
 
     def scaled(self, width: int, height: int) -> "CameraModel":
         """The same camera at another resolution (intrinsics scaled, mounting kept)."""
@@ -100,8 +110,12 @@ class CameraModel:
 
     @property
     def horizon_row(self) -> float:
-        """Image row (px) of the horizon: where points at infinity on the ground plane project."""
-        return self.cy - self.fy * math.tan(self.pitch_rad)
+        """Image row (px) of the horizon: where points at infinity on the ground plane project.
+
+        With roll the horizon is a tilted line; this is the row of its forward vanishing point
+        (where lines parallel to the direction of travel meet), ``cy - fy cos(roll) tan(pitch)``.
+        """
+        return self.cy - self.fy * math.cos(self.roll_rad) * math.tan(self.pitch_rad)
 
     @property
     def R_cam_from_ego(self) -> np.ndarray:
@@ -110,7 +124,11 @@ class CameraModel:
         # level camera: x_c = x, y_c = -z, z_c = y; then pitch down by theta about x_c.
         level = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
         pitch = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-        return pitch @ level
+        if self.roll_rad == 0.0:
+            return pitch @ level
+        cr, sr = math.cos(self.roll_rad), math.sin(self.roll_rad)
+        roll = np.array([[cr, sr, 0.0], [-sr, cr, 0.0], [0.0, 0.0, 1.0]])   # about the optical axis
+        return roll @ pitch @ level
 
     # ---------------------------------------------------------------- transforms
     def ego_to_cam(self, points_ego: np.ndarray) -> np.ndarray:
@@ -149,6 +167,8 @@ class CameraModel:
     def to_dict(self) -> dict:
         """The ``camera.json`` layout: width, height, K, height_m, pitch_rad and the rest."""
         d = asdict(self)
+        if d["roll_rad"] == 0.0:      # a calibration has no roll: keep camera.json as it was
+            del d["roll_rad"]
         d["K"] = self.K.tolist()
         d["horizon_row"] = self.horizon_row
         return d
@@ -159,7 +179,7 @@ class CameraModel:
 
         Accepted keys: width, height; either K (3x3) or fx, fy, cx, cy, or hfov_deg;
         height_m; pitch_rad or pitch_deg, or horizon_row (px; pitch = atan((cy - horizon_row) / fy));
-        lateral_offset_m; forward_offset_m. When both a pitch and ``horizon_row`` are given
+        lateral_offset_m; forward_offset_m; roll_rad or roll_deg (default 0). When both a pitch and ``horizon_row`` are given
         (as in ``camera.json``) they must agree within 1 px.
         """
         try:
@@ -195,7 +215,8 @@ class CameraModel:
             pitch = math.radians(float(d.get("pitch_deg", 0.0)))
         mount = dict(height_m=float(d["height_m"]), pitch_rad=pitch,
                      lateral_offset_m=float(d.get("lateral_offset_m", 0.0)),
-                     forward_offset_m=float(d.get("forward_offset_m", 0.0)))
+                     forward_offset_m=float(d.get("forward_offset_m", 0.0)),
+                     roll_rad=float(d["roll_rad"]) if "roll_rad" in d else math.radians(float(d.get("roll_deg", 0.0))))
         if "K" in d:
             K = np.asarray(d["K"], dtype=float)
             if K.shape != (3, 3):

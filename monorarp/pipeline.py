@@ -5,6 +5,9 @@ Stage interfaces (any object with these methods works; built-ins come from
 
 * detector  ``detect(image) -> list[Detection]``
 * ego_speed ``update(image, t) -> float | None`` (optional; m/s)
+* horizon   ``update(image, t) -> HorizonReading`` (optional, :mod:`monorarp.horizon`): the
+  frame's horizon row; a state estimator whose ``update`` takes a ``horizon`` keyword gets it
+  (none = the calibrated horizon)
 * tracker   ``update(image, detections, t) -> list[Track]``
 * state     ``update(tracks, t) -> dict[int, ObjectState]``
 * risk      ``assess(states, t) -> RiskEstimate``; when it takes an ``ego_speed``
@@ -47,7 +50,8 @@ class ComponentConfig(BaseModel):
 
 
 class PipelineConfig(BaseModel):
-    """Which component fills each stage. ``ego_speed`` and ``warning`` are optional (None = no such stage)."""
+    """Which component fills each stage. ``ego_speed``, ``warning`` and ``horizon`` are optional (None = no
+    such stage; no horizon stage = the calibrated horizon)."""
 
     model_config = ConfigDict(extra="forbid")
     detector: ComponentConfig
@@ -56,15 +60,16 @@ class PipelineConfig(BaseModel):
     risk: ComponentConfig = ComponentConfig(name="ttc")
     ego_speed: ComponentConfig | None = None
     warning: ComponentConfig | None = ComponentConfig(name="fcw")
+    horizon: ComponentConfig | None = None
 
 
 class Pipeline:
     """One frame in, one :class:`FrameResult` out; see the module docstring for stage interfaces."""
 
     def __init__(self, detector: Any, tracker: Any, state: Any, risk: Any, ego_speed: Any = None,
-                 warning: Any = None) -> None:
+                 warning: Any = None, horizon: Any = None) -> None:
         self.detector, self.tracker, self.state, self.risk, self.ego_speed = detector, tracker, state, risk, ego_speed
-        self.warning = warning
+        self.warning, self.horizon = warning, horizon
 
     @classmethod
     def from_config(cls, config: PipelineConfig | dict, camera: CameraModel | None = None) -> "Pipeline":
@@ -81,11 +86,12 @@ class Pipeline:
 
         return cls(detector=build("detector", cfg.detector), tracker=build("tracker", cfg.tracker),
                    state=build("state", cfg.state), risk=build("risk", cfg.risk),
-                   ego_speed=build("ego_speed", cfg.ego_speed), warning=build("warning", cfg.warning))
+                   ego_speed=build("ego_speed", cfg.ego_speed), warning=build("warning", cfg.warning),
+                   horizon=build("horizon", cfg.horizon))
 
     def reset(self) -> None:
         """Start a new sequence: every stateful stage forgets its history."""
-        for stage in (self.detector, self.tracker, self.state, self.risk, self.ego_speed, self.warning):
+        for stage in (self.detector, self.tracker, self.state, self.risk, self.ego_speed, self.warning, self.horizon):
             if hasattr(stage, "reset"):
                 stage.reset()
 
@@ -102,13 +108,23 @@ class Pipeline:
             rec["ego_speed"] = _timed(rec, "ego_speed", self.ego_speed.update, rec["frame"].image, rec["frame"].t)
         return rec
 
+    def _horizon(self, rec: dict) -> dict:
+        # only with a horizon stage: without one the timings keep their keys and the record has none
+        rec["horizon"] = _timed(rec, "horizon", self.horizon.update, rec["frame"].image, rec["frame"].t)
+        return rec
+
     def _track(self, rec: dict) -> dict:
         f = rec["frame"]
         rec["tracks"] = list(_timed(rec, "tracker", self.tracker.update, f.image, rec["detections"], f.t))
         return rec
 
     def _state(self, rec: dict) -> dict:
-        rec["states"] = dict(_timed(rec, "state", self.state.update, rec["tracks"], rec["frame"].t))
+        reading = rec.get("horizon")
+        if reading is not None and _takes(self.state.update, "horizon"):
+            rec["states"] = dict(_timed(rec, "state", lambda tr, t: self.state.update(tr, t, horizon=reading),
+                                        rec["tracks"], rec["frame"].t))
+        else:
+            rec["states"] = dict(_timed(rec, "state", self.state.update, rec["tracks"], rec["frame"].t))
         return rec
 
     def _risk(self, rec: dict) -> dict:
@@ -128,7 +144,8 @@ class Pipeline:
 
     @property
     def steps(self) -> list[Callable[[dict], dict]]:
-        return [self._detect, self._ego_speed, self._track, self._state, self._risk, self._warn]
+        horizon = [self._horizon] if self.horizon is not None else []
+        return [self._detect, self._ego_speed, *horizon, self._track, self._state, self._risk, self._warn]
 
     def process(self, frame: Frame) -> FrameResult:
         """Run every stage on one frame."""
@@ -141,6 +158,15 @@ class Pipeline:
 
 
 _TAKES_EGO_SPEED: dict[type, bool] = {}
+_TAKES: dict[tuple[Any, str], bool] = {}
+
+
+def _takes(method: Any, parameter: str) -> bool:
+    """Does the bound ``method`` accept keyword ``parameter``? (cached per function)"""
+    key = (getattr(method, "__func__", method), parameter)
+    if key not in _TAKES:
+        _TAKES[key] = registry.takes(method, parameter)
+    return _TAKES[key]
 
 
 def _takes_ego_speed(risk: Any) -> bool:
@@ -166,7 +192,7 @@ def _result(rec: dict) -> FrameResult:
     f = rec["frame"]
     return FrameResult(index=f.index, t=f.t, detections=rec["detections"], tracks=rec["tracks"],
                        states=rec["states"], risk=rec["risk"], ego_speed=rec["ego_speed"],
-                       timings_ms=rec["timings"], warning=rec["warning"])
+                       timings_ms=rec["timings"], warning=rec["warning"], horizon=rec.get("horizon"))
 
 
 # --------------------------------------------------------------------------- runners

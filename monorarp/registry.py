@@ -1,6 +1,6 @@
 """Components chosen by name: a small registry plus ``importlib.metadata`` entry points.
 
-Kinds: ``detector``, ``tracker``, ``state``, ``risk``, ``ego_speed``, ``warning``. A plug-in
+Kinds: ``detector``, ``tracker``, ``state``, ``risk``, ``ego_speed``, ``warning``, ``horizon``. A plug-in
 package exposes a factory under the entry-point group ``monorarp.<kind>``::
 
     [project.entry-points."monorarp.tracker"]
@@ -16,7 +16,7 @@ from typing import Any
 
 from monorarp.errors import UserError
 
-KINDS = ("detector", "tracker", "state", "risk", "ego_speed", "warning")
+KINDS = ("detector", "tracker", "state", "risk", "ego_speed", "warning", "horizon")
 _REGISTRY: dict[str, dict[str, Callable[..., Any]]] = {k: {} for k in KINDS}
 
 
@@ -38,7 +38,7 @@ def register(kind: str, name: str) -> Callable[[Callable[..., Any]], Callable[..
 
 def _load_builtins() -> None:
     # Importing the modules runs their @register decorators.
-    from monorarp import detection, ego_speed, risk, risk_mc, state, tracking, warning  # noqa: F401
+    from monorarp import detection, ego_speed, horizon, risk, risk_mc, state, tracking, warning  # noqa: F401
 
 
 def available(kind: str) -> list[str]:

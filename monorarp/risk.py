@@ -10,6 +10,11 @@ at constant relative velocity; TTC is the first time the rectangles touch within
 TTC is floored at ``min_ttc_s`` so the risk stays finite (rectangles already
 overlapping give ``1 / min_ttc_s``). Risk is 0 when no vehicle is on a
 collision course. Units: m, m/s, s; risk in 1/s.
+
+**TTC uncertainty** (``RiskEstimate.ttc_std``): first-order propagation of the state's
+one-sigma distance and closing-speed uncertainties through the longitudinal gap
+``g / c`` (``g`` = TTC x closing speed ``c = -v_y``):
+``sigma_ttc = sqrt((sigma_d / c)^2 + (TTC sigma_v / c)^2)``; for objects with a TTC and both sigmas.
 """
 
 from __future__ import annotations
@@ -68,4 +73,16 @@ class TTCRiskEstimator:
         ttc = self.ttc(states)
         finite = [v for v in ttc.values() if v is not None]
         risk = max((1.0 / max(v, self.min_ttc_s) for v in finite), default=0.0)
-        return RiskEstimate(risk=float(risk), ttc=ttc)
+        return RiskEstimate(risk=float(risk), ttc=ttc, ttc_std=ttc_std(states, ttc))
+
+
+def ttc_std(states: dict[int, ObjectState], ttc: dict[int, float | None]) -> dict[int, float]:
+    """Track id -> one-sigma TTC (s) from ``d_y_std`` and ``v_y_std`` (module docstring)."""
+    out = {}
+    for i, t in ttc.items():
+        s = states.get(i)
+        if t is None or s is None or s.d_y_std is None or s.v_y_std is None:
+            continue
+        c = max(-s.v_y, 1e-3)
+        out[i] = float(np.hypot(s.d_y_std / c, t * s.v_y_std / c))
+    return out

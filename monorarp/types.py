@@ -48,6 +48,20 @@ class Track:
 
 
 @dataclass(frozen=True)
+class HorizonReading:
+    """The horizon stage's answer for one frame (:mod:`monorarp.horizon`).
+
+    ``row``: image row (px) of the forward vanishing point that equation 3 uses this frame;
+    ``std_px``: its one-sigma uncertainty (px); ``source``: ``"vanishing_point"`` (measured
+    this frame), ``"held"`` (an earlier frame's) or ``"calibrated"`` (the calibration's).
+    """
+
+    row: float
+    std_px: float = 0.0
+    source: str = "calibrated"
+
+
+@dataclass(frozen=True)
 class ObjectState:
     """Relative state of one tracked vehicle in the ego frame (m, m/s)."""
 
@@ -57,7 +71,9 @@ class ObjectState:
     v_x: float
     v_y: float
     # One-sigma uncertainties (m, m/s) of the same quantities where the estimator has them
-    # (the Kalman filter's covariance); None = not estimated (e.g. the paper's differencing).
+    # (the Kalman filter's covariance; ``d_y_std`` adds the horizon's and the contact line's
+    # uncertainty, see monorarp.state); None = not estimated (e.g. the paper's differencing).
+    # The stated 90 % distance interval is d_y +- 1.645 d_y_std.
     d_x_std: float | None = None
     d_y_std: float | None = None
     v_x_std: float | None = None
@@ -80,6 +96,8 @@ class RiskEstimate:
     risk: float
     ttc: dict[int, float | None] = field(default_factory=dict)  # track id -> TTC (s) or None
     kind: str = "inverse_ttc"
+    # track id -> one-sigma of its TTC (s), first-order from d_y_std and v_y_std, where both exist
+    ttc_std: dict[int, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -114,3 +132,4 @@ class FrameResult:
     ego_speed: float | None = None
     timings_ms: dict[str, float] = field(default_factory=dict)
     warning: WarningState = field(default_factory=WarningState)
+    horizon: HorizonReading | None = None    # the horizon stage's reading (None: no stage, calibrated)

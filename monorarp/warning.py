@@ -26,6 +26,11 @@ uncertainty, from the constant-acceleration filter): a lead that brakes is met
 sooner than at constant velocity (:func:`monorarp.ttc.closing_time`), which is what
 a braking-lead test (NHTSA LVD) needs, since the velocity alone lags the braking.
 
+**Distance uncertainty.** With ``distance_sigmas`` = k (default 0) the object's rear
+face is taken at ``d_y - k d_y_std`` (the near side of its distance interval; the
+state estimator's ``d_y_std`` includes the horizon's uncertainty, so a camera whose
+pitch is poorly known warns earlier rather than late); negative k takes the far side.
+
 **Plausibility.** A significant lateral speed above ``max_lateral_speed_mps`` (3 m/s;
 lane changes on a highway move at 0.5-2 m/s) or a closing speed above
 ``max_closing_speed_mps`` (45 m/s, 162 km/h) is no vehicle's motion but a measurement
@@ -82,7 +87,8 @@ class ForwardCollisionWarning:
                  max_closing_speed_mps: float = 45.0, accel_sigmas: float | None = 2.0,
                  corridor_margin_m: float = 0.0, other_width_m: float = 1.8, other_length_m: float = 4.5,
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
-                 camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None) -> None:
+                 camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
+                 distance_sigmas: float = 0.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):
@@ -94,6 +100,9 @@ class ForwardCollisionWarning:
                         ("lateral_velocity_std_mps", lateral_velocity_std_mps)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be >= 0, got {v}")
+        if not np.isfinite(distance_sigmas):
+            raise ValueError(f"distance_sigmas must be finite, got {distance_sigmas}")
+        self.distance_sigmas = float(distance_sigmas)
         if camera is not None:
             camera_forward_offset_m, camera_lateral_offset_m = camera.forward_offset_m, camera.lateral_offset_m
         self.ttc_threshold_s, self.min_on_s, self.hold_s = float(ttc_threshold_s), float(min_on_s), float(hold_s)
@@ -128,6 +137,8 @@ class ForwardCollisionWarning:
         s = list(states.values())
         d_x = np.array([o.d_x for o in s], dtype=float)
         d_y = np.array([o.d_y for o in s], dtype=float)
+        if self.distance_sigmas:
+            d_y = d_y - self.distance_sigmas * np.array([0.0 if o.d_y_std is None else o.d_y_std for o in s])
         v_y_std = np.array([0.0 if o.v_y_std is None else o.v_y_std for o in s], dtype=float)
         v_y = significant_lateral_velocity([o.v_y for o in s], v_y_std, self.longitudinal_sigmas)
         v_x_std = np.array([self.lateral_velocity_std_mps if o.v_x_std is None else o.v_x_std for o in s])

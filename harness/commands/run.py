@@ -39,6 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--risk-horizon", type=float, default=10.0, metavar="S",
                    help="risk scoring: a frame is positive when a collision or near miss follows within S s "
                         "(default 10)")
+    p.add_argument("--horizon", choices=("calibrated", "online"), default="calibrated",
+                   help="horizon row of equation 3: the calibration's every frame, or this frame's lane-line "
+                        "vanishing point (monorarp.horizon; for a camera that pitches on its mount; "
+                        "default: calibrated)")
     p.add_argument("--frames", type=int, default=None, metavar="N",
                    help="number of frames (default: the scenario's duration x fps)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
@@ -55,11 +59,13 @@ def pipeline_config(args: argparse.Namespace):
     from monorarp.pipeline import ComponentConfig, PipelineConfig
 
     ego = getattr(args, "ego_speed", "none")
+    horizon = getattr(args, "horizon", "calibrated")
     return PipelineConfig(detector=detector_config(args),
                           tracker=ComponentConfig(name=args.tracker),
                           state=ComponentConfig(name="geometric", kwargs={"velocity": args.velocity}),
                           risk=ComponentConfig(name=getattr(args, "risk", "ttc")),
-                          ego_speed=None if ego == "none" else ComponentConfig(name=ego))
+                          ego_speed=None if ego == "none" else ComponentConfig(name=ego),
+                          horizon=None if horizon == "calibrated" else ComponentConfig(name=horizon))
 
 
 def run(args: argparse.Namespace) -> int:

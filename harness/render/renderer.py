@@ -51,6 +51,8 @@ _live_renderers = 0   # pyrender's EGL teardown terminates the shared display: o
 class RenderedFrame:
     """One rendered frame.
 
+    ``camera``: with a ``camera_motion:`` block, the true (moved) camera the frame was
+    rendered with; None for a camera that never moves on its mount.
     ``image``: (H, W, 3) uint8 BGR after optional noise/blur. ``id_mask``: (H, W)
     int32 vehicle id per pixel (-1 elsewhere), noise-free. ``full_pixels``: for
     each id in the mask, the pixels the vehicle would cover with nothing in front
@@ -61,6 +63,7 @@ class RenderedFrame:
     image: np.ndarray
     id_mask: np.ndarray
     full_pixels: dict[int, float] = field(default_factory=dict)
+    camera: CameraModel | None = None    # the frame's true camera when the scenario moves it (camera_motion)
 
 
 def _flat_mesh(triangles: np.ndarray, colors: np.ndarray, material: pyrender.Material) -> pyrender.Mesh:
@@ -173,7 +176,14 @@ class Renderer:
 
     def __init__(self, scenario: Scenario) -> None:
         self.scenario = scenario
-        self.camera: CameraModel = scenario.camera.model()
+        self.camera: CameraModel = scenario.camera.model()      # the nominal calibration
+        self.frame_camera: CameraModel = self.camera            # the true camera of the current frame
+        self._motion = None
+        if scenario.camera_motion is not None:
+            from harness.camera_motion import CameraMotionModel
+
+            self._motion = CameraMotionModel(scenario.camera_motion, self.camera, scenario.fps, scenario.seed)
+        self._motion_frame: int | None = None
         opts = scenario.render
         self._palette_seed = opts.palette_seed
         self._light_w = np.asarray(opts.light_direction, dtype=float)
@@ -249,11 +259,19 @@ class Renderer:
         self._cam.cx, self._cam.cy = cx + PIXEL_CENTRE_SHIFT, cy + PIXEL_CENTRE_SHIFT
         self._pr.viewport_width, self._pr.viewport_height = width, height
 
+    def _move_camera(self, world: WorldState) -> None:
+        """Set :attr:`frame_camera` to the true camera of ``world``'s frame (once per frame)."""
+        if self._motion is None or self._motion_frame == world.frame:
+            return
+        self.frame_camera = self._motion.camera(int(world.frame), float(world.ego.speed))
+        self._motion_frame = int(world.frame)
+
     def _prepare(self, world: WorldState):
         """Sync the scene to ``world``; return nodes, projected 3-D boxes, camera-frame corners, drawn flags."""
         if self._pr is None:
             raise RuntimeError("Renderer is closed")
-        c = self.camera
+        self._move_camera(world)
+        c = self.frame_camera
         vehicles = tuple(world.vehicles)
         nodes = self._sync_vehicles(vehicles)
         self._scene.set_pose(self._cam_node, geometry.camera_pose_world(world.ego, c))
@@ -271,8 +289,8 @@ class Renderer:
     # ------------------------------------------------------------------ render
     def render(self, world: WorldState) -> RenderedFrame:
         """Colour image, id mask and unoccluded pixel counts of one world state."""
-        c = self.camera
         vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
+        c = self.frame_camera
         self._set_intrinsics(c.fx, c.fy, c.cx, c.cy, c.width, c.height)
         rgb, _ = self._pr.render(self._scene, flags=pyrender.RenderFlags.FLAT)
         seg_map = {n: _seg_colour(v.id + 1) for n, v, d in zip(nodes, vehicles, drawn) if d}
@@ -284,11 +302,11 @@ class Renderer:
         full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn)
         image = apply_sensor(np.ascontiguousarray(rgb[..., ::-1]), self._noise_std, self._blur_px,
                              self._seed, world.frame)
-        return RenderedFrame(world.frame, image, id_mask, full)
+        return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else c)
 
     def _full_pixels(self, id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=False) -> dict[int, float]:
         """Unoccluded, unbounded pixel count of every vehicle visible in ``id_mask``."""
-        c = self.camera
+        c = self.frame_camera
         counts = np.bincount((id_mask + 1).ravel())
         visible = np.flatnonzero(counts[1:]).tolist()
         index = {v.id: i for i, v in enumerate(vehicles)}

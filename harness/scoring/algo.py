@@ -21,6 +21,8 @@ RANGE_BINS: dict[str, tuple[float, float]] = {
 TARGET_SPANS: dict[str, tuple[float, float]] = {"5-40": (5.0, 40.0), "40-80": (40.0, 80.0)}
 
 DEFAULT_WARNING_S = 2.0
+#: Two-sided 90 % normal quantile: the stated distance interval is est +- Z90 * std.
+Z90 = 1.6448536269514722
 
 
 def _nan_stat(fn, x: np.ndarray) -> float:
@@ -58,6 +60,20 @@ def error_stats(est: Sequence[float] | np.ndarray, gt: Sequence[float] | np.ndar
         nz = g != 0
         out.update(summary(np.abs(err[nz]) / np.abs(g[nz]), "rel_err_"))
     return out
+
+
+def interval_stats(est, std, gt, z: float = Z90) -> dict[str, float | int]:
+    """Coverage and width of the intervals ``est +- z std`` against ``gt`` (pairs where all three are finite).
+
+    ``interval_coverage``: share of pairs with ``|est - gt| <= z std``; ``interval_width_median_m`` /
+    ``_mean_m``: the full width ``2 z std`` (m); ``interval_count``: pairs scored.
+    """
+    est, std, gt = (np.asarray(a, dtype=float) for a in (est, std, gt))
+    ok = np.isfinite(est) & np.isfinite(std) & np.isfinite(gt)
+    inside = np.abs(est[ok] - gt[ok]) <= z * std[ok]
+    width = 2 * z * std[ok]
+    return {"interval_count": int(ok.sum()), "interval_coverage": _nan_stat(np.mean, inside.astype(float)),
+            "interval_width_median_m": _nan_stat(np.median, width), "interval_width_mean_m": _nan_stat(np.mean, width)}
 
 
 def bin_labels(d_long: Sequence[float] | np.ndarray, bins: dict[str, tuple[float, float]] = RANGE_BINS) -> np.ndarray:

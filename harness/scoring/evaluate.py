@@ -19,6 +19,10 @@ Rules (all configurable in :class:`EvalConfig`):
   object-frames whose track has a state, with ``0 <= d_long < 80`` (the union
   of the range bins): ``d_long`` vs ``d_y``, ``d_lat`` vs ``d_x``, ``v_long`` vs
   ``v_y`` (and ``v_lat`` vs ``v_x`` under ``rel_velocity.lateral``).
+* **Distance intervals**: ``distance.interval_coverage`` = share of those object-frames
+  (with a ``d_y_std``) whose ``d_long`` lies in the stated 90 % interval
+  ``d_y +- 1.645 d_y_std``; ``interval_width_median_m`` / ``_mean_m`` its full width
+  (``by_span`` too). ``horizon`` (with a horizon stage): :func:`horizon_metrics`.
 * **TTC warnings**: over counted matched object-frames, warning = TTC < threshold;
   a track with no TTC (none within the 10 s horizon, or no state) warns nothing.
   ``frame_warning``: per frame, the scene warns when any estimated TTC is below
@@ -157,11 +161,16 @@ def state_metrics(records: Sequence[ObjectRecord], cfg: EvalConfig) -> dict[str,
     in_range = (d_gt >= 0) & (d_gt < max(hi for _, hi in algo.RANGE_BINS.values()))
     scored = [r for r, ok in zip(pairs, in_range) if ok]
     col = {n: _column(scored, n) for n in ("d_long_gt", "d_y_est", "d_lat_gt", "d_x_est", "v_long_gt",
-                                           "v_y_est", "v_lat_gt", "v_x_est")}
+                                           "v_y_est", "v_lat_gt", "v_x_est", "d_y_std")}
     distance = algo.error_stats(col["d_y_est"], col["d_long_gt"], relative=True, unit="_m")
     distance["by_range"] = algo.binned_error_stats(col["d_y_est"], col["d_long_gt"], col["d_long_gt"])
     distance["by_span"] = algo.binned_error_stats(col["d_y_est"], col["d_long_gt"], col["d_long_gt"],
                                                   bins=algo.TARGET_SPANS)
+    distance.update(algo.interval_stats(col["d_y_est"], col["d_y_std"], col["d_long_gt"]))
+    for name, (lo, hi) in algo.TARGET_SPANS.items():
+        sel = (col["d_long_gt"] >= lo) & (col["d_long_gt"] < hi)
+        distance["by_span"][name].update(algo.interval_stats(col["d_y_est"][sel], col["d_y_std"][sel],
+                                                             col["d_long_gt"][sel]))
     lateral = algo.error_stats(col["d_x_est"], col["d_lat_gt"], relative=False, unit="_m")
     velocity = algo.error_stats(col["v_y_est"], col["v_long_gt"], relative=False, unit="_mps")
     velocity["lateral"] = algo.error_stats(col["v_x_est"], col["v_lat_gt"], relative=False, unit="_mps")
@@ -289,7 +298,42 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
         "scoring": {**asdict(cfg), "range_filter_on_predictions": camera is not None},
         "config": dict(run_info or {}),
     }
+    horizon = horizon_metrics(truths, results, camera)
+    if horizon is not None:
+        metrics["horizon"] = horizon
     return metrics, records
+
+
+def horizon_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult],
+                    camera: CameraModel | None) -> dict | None:
+    """The horizon stage's row against the true horizon row of each frame (None without a stage).
+
+    True row: the truth's ``camera.horizon_row`` (a moving camera) or the calibration's.
+    ``abs_err_*_px`` over all frames; ``coverage_90``: share of frames whose true row lies in
+    ``row +- 1.645 std_px``; ``sources``: frames per reading source; ``calibrated_abs_err_*_px``:
+    the calibrated row's error on the same frames (what the stage improves on).
+    """
+    if not results or all(r.horizon is None for r in results):
+        return None
+    est, std, true, nominal, sources = [], [], [], [], {}
+    for tr, r in zip(truths, results):
+        if r.horizon is None:
+            continue
+        cam_true = tr.get("camera", {}).get("horizon_row")
+        if cam_true is None and camera is None:
+            continue
+        true.append(float(cam_true) if cam_true is not None else camera.horizon_row)
+        nominal.append(camera.horizon_row if camera is not None else np.nan)
+        est.append(r.horizon.row)
+        std.append(r.horizon.std_px)
+        sources[r.horizon.source] = sources.get(r.horizon.source, 0) + 1
+    est, std, true, nominal = map(np.asarray, (est, std, true, nominal))
+    err = np.abs(est - true)
+    out = {"count": int(err.size), **algo.summary(err, "abs_err_", "_px"),
+           **algo.summary(np.abs(nominal - true), "calibrated_abs_err_", "_px"),
+           "coverage_90": float(np.mean(err <= algo.Z90 * std)) if err.size else NAN,
+           "std_median_px": float(np.median(std)) if std.size else NAN, "sources": sources}
+    return out
 
 
 # ------------------------------------------------------------------------ lane speed, risk

@@ -185,6 +185,9 @@ class Variant(_Model):
     ego_speed_kwargs: dict[str, Any] = {}
     warning: str | None = "fcw"
     warning_kwargs: dict[str, Any] = {}
+    horizon: str | None = Field(None, description="horizon stage (monorarp.horizon: calibrated, online); "
+                                                  "null: the calibrated horizon, no stage")
+    horizon_kwargs: dict[str, Any] = {}
 
     @model_validator(mode="after")
     def _velocity(self) -> "Variant":
@@ -209,6 +212,8 @@ class Variant(_Model):
         if self.ego_speed is not None:
             cfg["ego_speed"] = {"name": self.ego_speed, "kwargs": dict(self.ego_speed_kwargs)}
         cfg["warning"] = None if self.warning is None else {"name": self.warning, "kwargs": dict(self.warning_kwargs)}
+        if self.horizon is not None:      # absent, not null: configs without a horizon stage stay as they were
+            cfg["horizon"] = {"name": self.horizon, "kwargs": dict(self.horizon_kwargs)}
         return cfg
 
 

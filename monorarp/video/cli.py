@@ -62,6 +62,9 @@ def register_video(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--display", action="store_true",
                    help="show annotated frames in a window (needs a screen and OpenCV with GUI support; "
                         "q or Esc stops early)")
+    p.add_argument("--horizon", choices=("calibrated", "online"), default="calibrated",
+                   help="horizon row of equation 3: the calibration's, or each frame's lane-line vanishing point "
+                        "(for a camera that pitches on its mount; default: calibrated)")
     p.add_argument("--max-frames", type=_positive_int, default=None, metavar="N", help="stop after N frames")
     p.add_argument("--no-video", action="store_true", help="do not write annotated.mp4")
     p.add_argument("--threaded", action="store_true", help="one thread per pipeline stage (as in the paper)")
@@ -74,7 +77,8 @@ def video_command(args: argparse.Namespace) -> int:
     ego = None if str(args.ego_speed).lower() == "none" else args.ego_speed
     options = VideoRunOptions(detector=str(args.detector), tracker=args.tracker, ego_speed=ego, risk=args.risk,
                               speed_mps=args.speed, threaded=args.threaded, max_frames=args.max_frames,
-                              write_video=not args.no_video, display=args.display)
+                              write_video=not args.no_video, display=args.display,
+                              horizon=getattr(args, "horizon", "calibrated"))
     out = args.out if args.out is not None else _default_out(args.input)
     summary = run_video(args.input, args.camera, out, options)
     span = "" if summary.t_first is None else f", t {summary.t_first:.3f}..{summary.t_last:.3f} s"

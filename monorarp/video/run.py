@@ -72,6 +72,7 @@ class VideoRunOptions:
     display: bool = False
     warning_s: float = 2.0
     extra: dict[str, dict[str, Any]] = field(default_factory=dict)   # stage -> extra constructor kwargs
+    horizon: str | None = None          # horizon stage (monorarp.horizon); None = the calibrated horizon
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,8 @@ def pipeline_config(options: VideoRunOptions) -> PipelineConfig:
         risk=ComponentConfig(name=options.risk, kwargs=risk_kw),
         ego_speed=None if options.ego_speed is None else
         ComponentConfig(name=options.ego_speed, kwargs=dict(extra.get("ego_speed", {}))),
+        horizon=None if options.horizon in (None, "calibrated") else
+        ComponentConfig(name=options.horizon, kwargs=dict(extra.get("horizon", {}))),
     )
 
 
