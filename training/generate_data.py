@@ -112,12 +112,17 @@ def fovea_of(scen) -> Fovea | None:
 
 def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, frame_stride: int,
              resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
-             fovea: bool = False) -> None:
+             fovea: bool = False, keep_source: bool = False) -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
-    the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle)."""
+    the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
+    With ``keep_source`` (one resolution only) the full-resolution frames are also stored, as
+    ``source.npy`` (N, src_h, src_w, 3) uint8 BGR, with each image's camera in ``meta.json``: what the
+    detector sees in the pipeline, for figures at the source resolution (:mod:`training.evaluate`)."""
+    if keep_source and (len(set(resolutions)) != 1 or fovea):
+        raise SystemExit("--keep-source needs a single resolution and no --fovea")
     out.mkdir(parents=True, exist_ok=True)
-    images, rows, metas = [], [], []
+    images, rows, metas, sources = [], [], [], []
     t0 = time.time()
     skipped = 0
     for s in range(n_scenarios):
@@ -146,16 +151,21 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
                     required = (vis >= min_visibility) & big
                     i = len(images)
                     images.append(lb.apply(image))
+                    if keep_source:
+                        sources.append(image)
                     for b, req in zip(boxes, required):
                         rows.append((i, *b, 0.0 if req else 1.0))
                     c = scen.camera
                     metas.append({"src_w": lb.src_w, "src_h": lb.src_h, "scenario": scen.name, "frame": wstate.frame,
                                   "hfov_deg": c.hfov_deg, "height_m": c.height_m, "pitch_deg": c.pitch_deg,
                                   "view": "full" if view is None else [view.x0, view.y0, view.w, view.h],
-                                  "n_required": int(required.sum())})
+                                  "n_required": int(required.sum())}
+                                 | ({"camera": scen.camera.model().to_dict()} if keep_source else {}))
         if (s + 1) % 10 == 0:
             print(f"{s + 1}/{n_scenarios} scenarios, {len(images)} images, {time.time() - t0:.0f}s", flush=True)
     np.save(out / "images.npy", np.stack(images))
+    if keep_source:
+        np.save(out / "source.npy", np.stack(sources))
     np.save(out / "boxes.npy", np.array(rows, float).reshape(-1, 6))
     (out / "meta.json").write_text(json.dumps({
         "net_input": [NET_W, NET_H], "seed": seed, "scenarios": n_scenarios, "skipped_scenarios": skipped,
@@ -178,10 +188,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--min-visibility", type=float, default=0.3)
     ap.add_argument("--min-size", type=float, default=3.0, help="px at the net's 320x192 scale")
     ap.add_argument("--fovea", action="store_true", help="also store each frame's fovea crop (second pass)")
+    ap.add_argument("--keep-source", action="store_true",
+                    help="also store the full-resolution frames (source.npy) and cameras (one resolution only)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
-    generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea)
+    generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
+             a.keep_source)
 
 
 if __name__ == "__main__":

@@ -42,12 +42,14 @@ import cv2
 import numpy as np
 
 from monorarp.camera import CameraModel
+from monorarp.detection.bottom_edge import refine_bottom as refine_bottom_edges
 from monorarp.detection.fovea import Fovea, merge
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
 from monorarp.registry import register
 from monorarp.types import Detection
 
+REFINE_DEFAULT = False    # sub-pixel bottom-edge refinement (see notes/edge.md for the A/B figures)
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_vehicle.onnx"
 OUTPUT_NAMES = ("heatmap", "ltrb")
 
@@ -142,6 +144,9 @@ class CenterNetDetector:
     second pass (default: when a camera is given). ``fovea_*``: see :func:`monorarp.detection.fovea.merge`
     and :meth:`~monorarp.detection.fovea.Fovea.place` (``zoom``, ``below``, ``margin_px``,
     ``dup_iou``, ``support`` (None: plain union), ``box``, ``max_height``).
+    ``refine_bottom``: move each box's bottom edge to the vehicle/road transition found in the
+    image to a fraction of a pixel (:func:`monorarp.detection.bottom_edge.refine_bottom`;
+    the detector's edge stays where no clear edge lies within a few px of it).
     """
 
     FOVEA_DEFAULTS = {"fovea_zoom": 2.0, "fovea_below": 0.25}
@@ -151,7 +156,8 @@ class CenterNetDetector:
                  camera: CameraModel | dict | None = None, foveate: bool | None = None,
                  fovea_zoom: float = FOVEA_DEFAULTS["fovea_zoom"], fovea_below: float = FOVEA_DEFAULTS["fovea_below"],
                  fovea_margin_px: float = 2.0, fovea_dup_iou: float = 0.3, fovea_support: float | None = 0.2,
-                 fovea_box: str = "auto", fovea_max_height: float = 0.35, **_ignored) -> None:
+                 fovea_box: str = "auto", fovea_max_height: float = 0.35, refine_bottom: bool = REFINE_DEFAULT,
+                 **_ignored) -> None:
         self.path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         self.session = open_session(self.path, intra_op_num_threads)
         self.input_name, self.input_h, self.input_w = expect_image_input(self.session, self.path)
@@ -180,6 +186,9 @@ class CenterNetDetector:
             raise ValueError(f"fovea_box must be 'auto', 'mean' or 'fovea', got {fovea_box!r}")
         self.fovea_box = fovea_box
         self.fovea_max_height = float(fovea_max_height)
+        if not isinstance(refine_bottom, bool):
+            raise ValueError(f"refine_bottom must be true or false, got {refine_bottom!r}")
+        self.refine_bottom = refine_bottom
         self._fovea: tuple[tuple[int, int], Fovea | None, Letterbox | None] | None = None
 
     def raw(self, image: np.ndarray, letterbox: Letterbox | None = None) -> tuple[np.ndarray, np.ndarray, Letterbox]:
@@ -228,6 +237,8 @@ class CenterNetDetector:
             boxes, scores = merge(boxes, scores, fb, fs, fov, self.score_threshold, self.fovea_support,
                                   self.fovea_margin_px, self.fovea_dup_iou, self.fovea_box,
                                   self.fovea_max_height)
+        if self.refine_bottom and len(boxes):
+            boxes, _ = refine_bottom_edges(image, boxes)
         return boxes, scores
 
     def detect(self, image: np.ndarray) -> list[Detection]:
