@@ -82,13 +82,19 @@ def test_no_edge_or_edge_out_of_reach_keeps_the_detector_edge():
 
 
 def test_box_at_the_image_border_and_degenerate_boxes_are_left_alone():
-    img = scene(237.2)
-    boxes = np.array([[100.0, 197.0, 160.0, 237.5],          # band leaves the image
+    img = scene(250.0)                                          # the vehicle runs off the image's bottom
+    boxes = np.array([[100.0, 199.5, 160.0, 239.5],          # cut by the border: no road below it
                       [100.0, 149.0, 160.0, 150.0],          # 1 px tall
                       [np.nan, 110.0, 160.0, 150.0]])
     out, moved = refine_bottom(img, boxes)
     assert not moved.any()
     np.testing.assert_array_equal(out, boxes)
+
+
+def test_vehicle_near_the_image_border_is_refined():
+    img = scene(237.2, x1=-20.0, x2=40.0)                       # 2 px above the last row, cut on the left
+    out, moved = refine_bottom(img, np.array([[-0.5, 197.0, 40.0, 236.0]]))
+    assert moved[0] and abs(out[0, 3] - 237.2) <= 0.07
 
 
 def test_empty_input():
