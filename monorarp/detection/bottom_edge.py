@@ -30,7 +30,6 @@ Coordinates: continuous source pixels (:mod:`monorarp.types`, pixel centres at i
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +52,7 @@ class BottomEdgeParams:
     min_height_px: float = 4.0     # boxes shorter than this are left alone
     above: int = 3                 # rows just above a bottom transition's last vehicle row ...
     above_min: int = 2             # ... of which this many must differ from the road too
+    max_cols: int = 32             # wider boxes: this many evenly spaced columns
 
 
 def refine_bottom(image: np.ndarray, boxes: np.ndarray,
@@ -60,76 +60,96 @@ def refine_bottom(image: np.ndarray, boxes: np.ndarray,
     """Refined copy of ``boxes`` (K, 4) and a (K,) bool mask of those whose bottom edge moved.
 
     ``image``: (H, W, 3) uint8 BGR, the image the boxes are in (continuous source pixels).
-    Only ``y2`` changes. Boxes whose band leaves the image, or where no clear edge is found,
-    keep the detector's edge.
+    Only ``y2`` changes. Boxes whose band does not fit in the image, or where no clear edge is
+    found, keep the detector's edge. All boxes are processed together: each box's band is
+    gathered into a fixed (rows, columns) grid (columns evenly sampled, at most ``max_cols``;
+    rows and columns outside its band masked), so the cost hardly grows with the box count.
     """
+    p = params
     out = np.array(boxes, dtype=np.float64).reshape(-1, 4)
     moved = np.zeros(len(out), dtype=bool)
-    for k, b in enumerate(out):
-        y = _refine_one(image, b, params)
-        if y is not None:
-            out[k, 3] = y
-            moved[k] = True
+    h_img, w_img = image.shape[:2]
+    x1, y1, x2, y2 = out.T
+    hgt, wid = y2 - y1, x2 - x1
+    ok = np.isfinite(out).all(1) & (hgt >= p.min_height_px) & (wid >= 2)
+    if not ok.any():
+        return out, moved
+    k_ok = np.flatnonzero(ok)
+    x1, y2, hgt, wid = x1[k_ok], y2[k_ok], hgt[k_ok], wid[k_ok]
+    w = p.window
+    s = np.clip(p.search_frac * hgt, p.search_min_px, p.search_max_px)            # (K,) search half-height
+    r0 = np.floor(y2 - s).astype(np.int64) - w                                      # band's first row
+    last = np.minimum(np.ceil(y2 + s).astype(np.int64) + w + 1, h_img - 1)          # band's last row
+    inset = p.inset_frac * wid
+    c0 = np.maximum(np.ceil(x1 + inset), 0).astype(np.int64)
+    c1 = np.minimum(np.floor(x1 + wid - inset), w_img - 1).astype(np.int64)
+    fits = (r0 >= 0) & (last >= y2 + 1.5) & (c1 - c0 >= 1)
+    n_r = int(np.ceil(p.search_max_px)) * 2 + 2 * w + 4                             # rows of the grid
+    n_band = np.clip(last - r0 + 1, 2, n_r)              # (K,) rows in the band (boxes that do not fit: masked)
+    n_c = np.clip(c1 - c0 + 1, 1, p.max_cols)                                       # (K,) sampled columns
+    n_grid_c = int(n_c.max())
+    jj = np.arange(n_grid_c)
+    col_ok = jj[None, :] < n_c[:, None]                                             # (K, C)
+    cols = c0[:, None] + (jj[None, :] * (c1 - c0 + 1)[:, None]) // n_c[:, None]
+    rows = r0[:, None] + np.arange(n_r)[None, :]                                    # (K, R)
+    band = image[np.clip(rows, 0, h_img - 1)[:, :, None], np.clip(cols, 0, w_img - 1)[:, None, :]]
+    band = band.astype(np.float32)                                                  # (K, R, C, 3)
+    diff = band[:, 1:] - band[:, :-1]                     # (K, R-1, C, 3): transition at y = row + 0.5
+    g2 = np.einsum("krcx,krcx->krc", diff, diff)          # squared colour difference
+    in_band = np.arange(n_r - 1)[None, :] < (n_band - 1)[:, None]                 # (K, R-1) transitions
+    region = in_band[:, :, None] & col_ok[:, None, :]
+    med = _masked_median(g2.reshape(len(k_ok), -1), region.reshape(len(k_ok), -1))
+    tau = np.maximum(p.noise_floor, p.noise_k * np.sqrt(med))
+    tau2 = (tau * tau)[:, None, None]
+    # what lies below the vehicle: per column, the band's last row (the road, or an occluder);
+    # a vehicle's bottom is a transition from a pixel unlike it (with ``above_min`` of the
+    # ``above`` pixels over it unlike it too) to a pixel like it
+    below = np.take_along_axis(band, (n_band - 1)[:, None, None, None], axis=1)   # (K, 1, C, 3)
+    dev = band - below
+    unlike = np.einsum("krcx,krcx->krc", dev, dev) > tau2                           # (K, R, C)
+    u = unlike[:, :-1]
+    n_above = np.zeros(u.shape, np.int8)
+    for j in range(1, p.above + 1):
+        n_above[:, j:] += u[:, :-j]
+    i_idx = np.arange(n_r - 1)[None, :]
+    lo_i = np.ceil(y2 - s - r0 - 0.5)[:, None]                                      # transitions in y2 +- s
+    hi_i = np.floor(y2 + s - r0 - 0.5)[:, None]
+    t_ok = (i_idx >= lo_i) & (i_idx <= hi_i) & in_band
+    strong = (g2 > tau2) & u & (n_above >= p.above_min) & ~unlike[:, 1:] & t_ok[:, :, None] & col_ok[:, None, :]
+    has = strong.any(1)                                                              # (K, C)
+    need = np.maximum(p.min_cols, np.ceil(p.min_cols_frac * n_c)).astype(np.int64)
+    enough = fits & (has.sum(1) >= need)
+    lowest = np.where(has, n_r - 2 - np.argmax(strong[:, ::-1], axis=1), -1)      # (K, C) row index
+    srt = -np.sort(-lowest, axis=1)                                                  # descending
+    bottom_i = np.take_along_axis(srt, np.minimum(need, n_grid_c)[:, None] - 1, axis=1)   # need-th lowest
+    sel = has & (np.abs(lowest - bottom_i) <= p.cluster_px)                          # (K, C)
+    # per column: centroid of the differences within +-window rows of its transition, projected on
+    # the transition's colour direction, over the contiguous run of positive ones around it
+    rr = np.maximum(lowest, 0)[:, :, None] + np.arange(-w, w + 1)[None, None, :]    # (K, C, 2w+1)
+    r_in = (rr >= 0) & (rr < (n_band - 1)[:, None, None])
+    rr = np.clip(rr, 0, n_r - 2)
+    d = diff[np.arange(len(k_ok))[:, None, None], rr, np.arange(n_grid_c)[None, :, None]]   # (K, C, 2w+1, 3)
+    proj = np.einsum("kcjx,kcx->kcj", d, d[:, :, w]) * r_in
+    pos = proj > 0
+    keep = np.concatenate([np.cumprod(pos[..., w::-1], axis=-1)[..., :0:-1], np.cumprod(pos[..., w:], axis=-1)],
+                          axis=-1)
+    wts = proj * keep
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ys = (wts * (r0[:, None, None] + rr + 0.5)).sum(-1) / wts.sum(-1)            # (K, C)
+    sel &= np.isfinite(ys)
+    enough &= sel.any(1)
+    y = _masked_median(ys, sel)
+    accept = enough & (np.abs(y - y2) <= s)
+    out[k_ok[accept], 3] = y[accept]
+    moved[k_ok[accept]] = True
     return out, moved
 
 
-def _refine_one(image: np.ndarray, box: np.ndarray, p: BottomEdgeParams) -> float | None:
-    x1, y1, x2, y2 = (float(v) for v in box)
-    h_img, w_img = image.shape[:2]
-    hgt, wid = y2 - y1, x2 - x1
-    if not (hgt >= p.min_height_px and wid >= 2 and math.isfinite(x1 + y1 + x2 + y2)):
-        return None
-    s = min(max(p.search_frac * hgt, p.search_min_px), p.search_max_px)
-    w = p.window
-    r0 = math.floor(y2 - s) - w                     # first row of the band
-    r1 = min(math.ceil(y2 + s) + w + 1, h_img - 1)  # last row (inclusive), cut at the image's last row
-    inset = p.inset_frac * wid
-    c0, c1 = max(math.ceil(x1 + inset), 0), min(math.floor(x2 - inset), w_img - 1)  # columns (inclusive)
-    if r0 < 0 or r1 < y2 + 1.5 or c1 - c0 < 1:
-        return None                                 # no room for the band inside the image
-    band = image[r0:r1 + 1, c0:c1 + 1].astype(np.float32)          # (R, C, 3)
-    diff = band[1:] - band[:-1]                    # (R-1, C, 3): transition at y = r0 + i + 0.5
-    g2 = np.einsum("rck,rck->rc", diff, diff)     # squared colour difference (R-1, C)
-    n_rows, n_cols = g2.shape
-    k = g2.size // 2
-    tau = max(p.noise_floor, p.noise_k * math.sqrt(float(np.partition(g2.ravel(), k)[k])))
-    tau2 = tau * tau
-    # what lies below the vehicle: per column, the band's last row (the road, or an occluder);
-    # a vehicle's bottom is a transition from a pixel unlike it (with ``above_min`` of the ``above``
-    # pixels over it unlike it too) to a pixel like it
-    dev = band - band[-1]
-    unlike = np.einsum("rck,rck->rc", dev, dev) > tau2                    # (R, C)
-    u = unlike[:-1]
-    n_above = np.zeros(u.shape, np.int8)                                   # rows i-1 .. i-above unlike it
-    for j in range(1, p.above + 1):
-        n_above[j:] += u[:-j]
-    run = u & (n_above >= p.above_min)                                     # row i unlike the road too
-    lo_i, hi_i = math.ceil(y2 - s - r0 - 0.5), math.floor(y2 + s - r0 - 0.5)   # transitions in y2 +- s
-    strong = (g2 > tau2) & run & ~unlike[1:]
-    strong[:max(lo_i, 0)] = False
-    strong[hi_i + 1:] = False
-    has = strong.any(0)
-    need = max(p.min_cols, math.ceil(p.min_cols_frac * n_cols))
-    if int(has.sum()) < need:
-        return None
-    lowest = np.where(has, n_rows - 1 - np.argmax(strong[::-1], axis=0), -1)   # (C,) row index
-    bottom_i = np.partition(lowest, n_cols - need)[n_cols - need]             # the need-th lowest
-    cols = np.flatnonzero(np.abs(lowest - bottom_i) <= p.cluster_px)
-    li = lowest[cols]
-    # centroid of the differences within +-window rows of each column's transition, projected on
-    # the transition's colour direction: the contiguous run of positive ones around it
-    rows = li[:, None] + np.arange(-w, w + 1)[None, :]                    # (M, 2w+1)
-    d = diff[np.minimum(rows, n_rows - 1), cols[:, None]]                    # (M, 2w+1, 3) (rows >= 0)
-    proj = np.einsum("mjk,mk->mj", d, d[:, w])                               # (M, 2w+1), > 0 at j = w
-    if rows[:, -1].max() >= n_rows:                                          # band cut by the image's bottom
-        proj *= rows < n_rows
-    pos = proj > 0
-    keep = np.concatenate([np.cumprod(pos[:, w::-1], axis=1)[:, :0:-1], np.cumprod(pos[:, w:], axis=1)], axis=1)
-    wts = proj * keep
-    ys = (wts * (r0 + rows + 0.5)).sum(1) / wts.sum(1)
-    ys.sort()
-    m = len(ys)
-    y = float(ys[m // 2]) if m % 2 else 0.5 * float(ys[m // 2 - 1] + ys[m // 2])   # median
-    if abs(y - y2) > s:
-        return None
-    return y
+def _masked_median(a: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Row-wise median of ``a`` (K, N) over ``mask`` (K, N); inf where a row has no element."""
+    b = np.where(mask, a, np.inf)
+    b.sort(axis=1)
+    n = mask.sum(1)
+    lo = np.take_along_axis(b, np.maximum(n - 1, 0)[:, None] // 2, axis=1)[:, 0]
+    hi = np.take_along_axis(b, np.minimum(n // 2, b.shape[1] - 1)[:, None], axis=1)[:, 0]
+    return 0.5 * (lo + hi)

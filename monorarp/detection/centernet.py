@@ -49,7 +49,7 @@ from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open
 from monorarp.registry import register
 from monorarp.types import Detection
 
-REFINE_DEFAULT = False    # sub-pixel bottom-edge refinement (see notes/edge.md for the A/B figures)
+REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes/edge.md)
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_vehicle.onnx"
 OUTPUT_NAMES = ("heatmap", "ltrb")
 
@@ -178,6 +178,7 @@ class CenterNetDetector:
         self.max_detections = self.meta.max_detections if max_detections is None else int(max_detections)
         self._lb: Letterbox | None = None
         self.camera = CameraModel.from_dict(camera) if isinstance(camera, dict) else camera
+        self._foveate_arg = foveate
         self.foveate = (self.camera is not None) if foveate is None else bool(foveate)
         self.fovea_zoom, self.fovea_below = float(fovea_zoom), float(fovea_below)
         self.fovea_margin_px, self.fovea_dup_iou = float(fovea_margin_px), float(fovea_dup_iou)
@@ -190,6 +191,12 @@ class CenterNetDetector:
             raise ValueError(f"refine_bottom must be true or false, got {refine_bottom!r}")
         self.refine_bottom = refine_bottom
         self._fovea: tuple[tuple[int, int], Fovea | None, Letterbox | None] | None = None
+
+    def set_camera(self, camera: CameraModel | None) -> None:
+        """Use another calibration from the next frame on (the fovea follows; ``foveate`` as at construction)."""
+        self.camera = camera
+        self.foveate = (camera is not None) if self._foveate_arg is None else bool(self._foveate_arg)
+        self._fovea = None
 
     def raw(self, image: np.ndarray, letterbox: Letterbox | None = None) -> tuple[np.ndarray, np.ndarray, Letterbox]:
         """Run the net: (heatmap (h, w), ltrb (4, h, w), the letterbox used)."""
