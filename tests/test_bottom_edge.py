@@ -11,6 +11,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from monorarp.detection.bottom_edge import refine_bottom
 from monorarp.detection.centernet import CenterNetDetector
@@ -121,3 +123,21 @@ def test_detector_option_is_validated_and_applied():
     assert len(b0) >= 3 and moved.sum() >= 2
     np.testing.assert_array_equal(s0, s1)
     np.testing.assert_array_equal(b1, want)
+
+
+@settings(max_examples=200, deadline=None, derandomize=True, database=None)
+@given(seed=st.integers(0, 2**31 - 1),
+       boxes=st.lists(st.tuples(*[st.one_of(st.floats(-50, 200), st.sampled_from([np.nan, np.inf, -np.inf]))] * 4),
+                      min_size=0, max_size=6))
+def test_any_boxes_on_any_image_only_move_the_bottom_within_reach(seed, boxes):
+    rng = np.random.default_rng(seed)
+    img = rng.integers(0, 256, (int(rng.integers(1, 120)), int(rng.integers(1, 160)), 3), dtype=np.uint8)
+    if rng.random() < 0.5:   # blocky content: real edges
+        img = cv2.resize(img[::8, ::8], (img.shape[1], img.shape[0]), interpolation=cv2.INTER_NEAREST)
+    b = np.array(boxes, float).reshape(-1, 4)
+    out, moved = refine_bottom(img, b)
+    assert out.shape == b.shape and moved.shape == (len(b),)
+    np.testing.assert_array_equal(out[:, :3], b[:, :3])
+    np.testing.assert_array_equal(out[~moved], b[~moved])
+    assert np.all(np.abs(out[moved, 3] - b[moved, 3]) <= 5.0)     # BottomEdgeParams.search_max_px
+    np.testing.assert_array_equal(refine_bottom(img, b)[0], out)    # deterministic

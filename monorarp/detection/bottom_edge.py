@@ -69,9 +69,10 @@ def refine_bottom(image: np.ndarray, boxes: np.ndarray,
     out = np.array(boxes, dtype=np.float64).reshape(-1, 4)
     moved = np.zeros(len(out), dtype=bool)
     h_img, w_img = image.shape[:2]
-    x1, y1, x2, y2 = out.T
+    finite = np.isfinite(out).all(1)
+    x1, y1, x2, y2 = np.where(finite[:, None], out, 0.0).T
     hgt, wid = y2 - y1, x2 - x1
-    ok = np.isfinite(out).all(1) & (hgt >= p.min_height_px) & (wid >= 2)
+    ok = finite & (hgt >= p.min_height_px) & (wid >= 2)
     if not ok.any():
         return out, moved
     k_ok = np.flatnonzero(ok)
