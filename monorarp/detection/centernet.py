@@ -31,6 +31,11 @@ distance error from 8.6 % to 2.9 % and recall from 0.95 to 1.0 (MOTA 0.95 -> 1.0
 one more net run (~3.8 ms on one thread).
 Without a camera the detector runs the full view only, unless
 ``foveate=True`` (then the crop is centred on the image centre).
+
+Sub-pixel bottom edge (``refine_bottom``, on by default): after the merge, each box's bottom
+edge is moved to the vehicle/road transition read from the source image to a fraction of a
+pixel (:mod:`monorarp.detection.bottom_edge`). On ``highway_cruise`` it takes the median distance
+error from 1.96 % to 0.10 % over 5-40 m and from 2.90 % to 1.33 % over 40-80 m.
 """
 
 from __future__ import annotations
