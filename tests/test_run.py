@@ -156,6 +156,7 @@ def scenario_file(tmp_path):
     (["--detector", "missing_model.onnx"], "missing_model.onnx: model file not found"),
     (["--detector", "centernet", "--oracle-jitter", "1"], "need --detector oracle"),
     (["--detector", "oracle", "--oracle-miss-rate", "2"], "miss rate"),
+    (["--detector", "oracle", "--refine-bottom", "on"], "--refine-bottom applies to the CenterNet detector"),
     (["--frames", "0"], "--frames"),
 ])
 def test_bad_input_exits_2_and_writes_nothing(scenario_file, tmp_path, capsys, extra, message):

@@ -6,6 +6,10 @@ A dataset directory holds
 * ``boxes.npy`` -- (M, 7) float: image index, x1, y1, x2, y2 (*source*-image pixels,
   continuous convention of :mod:`monorarp.types`), ignore flag (1 = too occluded/small:
   neither required nor penalised);
+* ``boxes_fine.npy`` (optional, ``generate_data --truth-supersample``) -- (M, 4) the same boxes
+  from an id mask rendered at N x the resolution (continuous edges to 1/N px; NaN: none);
+* ``source.npy`` (optional, ``generate_data --keep-source``) -- (N, src_h, src_w, 3) the
+  full-resolution frames, each image's camera in ``meta.json``;
 * ``meta.json`` -- per image the source size (``src_w``, ``src_h``) and the scenario
   parameters, plus how the set was generated.
 """
@@ -27,13 +31,15 @@ class Dataset:
     boxes: np.ndarray           # (M, 6): img, x1, y1, x2, y2, ignore (source px)
     src_sizes: np.ndarray       # (N, 2) int: src_w, src_h
     meta: dict
+    fine: np.ndarray | None = None      # (M, 4) supersampled-truth boxes aligned with ``boxes``
 
     @classmethod
     def load(cls, d: str | Path) -> "Dataset":
         d = Path(d)
         meta = json.loads((d / "meta.json").read_text())
         src = np.array([[m["src_w"], m["src_h"]] for m in meta["images"]], dtype=np.int64)
-        return cls(np.load(d / "images.npy", mmap_mode="r"), np.load(d / "boxes.npy"), src, meta)
+        fine = np.load(d / "boxes_fine.npy") if (d / "boxes_fine.npy").is_file() else None
+        return cls(np.load(d / "images.npy", mmap_mode="r"), np.load(d / "boxes.npy"), src, meta, fine)
 
     @classmethod
     def concat(cls, dirs: list[str | Path]) -> "Dataset":
@@ -57,6 +63,13 @@ class Dataset:
             xy = self.letterbox(i).to_dst(xy)
         ign = b[:, 5] > 0.5
         return xy[~ign], xy[ign]
+
+    def fine_of(self, i: int) -> np.ndarray | None:
+        """Supersampled-truth boxes (K, 4, source px) of image i's required boxes, in ``boxes_of`` order."""
+        if self.fine is None:
+            return None
+        sel = self.boxes[:, 0] == i
+        return self.fine[sel][self.boxes[sel, 5] <= 0.5]
 
 
 def gaussian_targets(boxes: np.ndarray, out_h: int, out_w: int, stride: int, alpha: float = 0.54,

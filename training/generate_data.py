@@ -19,6 +19,7 @@ net's scale are >= ``--min-size`` px; other visible vehicles are stored as *igno
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
@@ -110,21 +111,48 @@ def fovea_of(scen) -> Fovea | None:
                        kw["fovea_below"])
 
 
+def supersampled(scenario: dict, n: int):
+    """The scenario with its camera at ``n`` x the resolution (same field of view and mounting)."""
+    d = json.loads(json.dumps(scenario))
+    d["camera"]["width"], d["camera"]["height"] = d["camera"]["width"] * n, d["camera"]["height"] * n
+    return parse_scenario(d)
+
+
+def fine_truth(renderer: Renderer, world, n: int) -> dict[int, np.ndarray]:
+    """Vehicle id -> tight visible box (source px, continuous) from the id mask of ``renderer``
+    (a camera at ``n`` x the source's resolution)."""
+    ids, boxes, _ = visible_boxes(renderer.render(world).id_mask, {})
+    return {int(v): (b + 0.5) / n - 0.5 for v, b in zip(ids, boxes)}
+
+
 def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, frame_stride: int,
              resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
-             fovea: bool = False) -> None:
+             fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1) -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
-    the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle)."""
+    the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
+    With ``keep_source`` (one resolution only) the full-resolution frames are also stored, as
+    ``source.npy`` (N, src_h, src_w, 3) uint8 BGR, with each image's camera in ``meta.json``: what the
+    detector sees in the pipeline, for figures at the source resolution (:mod:`training.evaluate`).
+    With ``truth_supersample`` N > 1 (needs ``keep_source``) the id masks are also rendered at N times
+    the resolution, giving every stored box its continuous edges to 1/N px (``boxes_fine.npy``, rows
+    aligned with ``boxes.npy``, source px; NaN where the vehicle has no pixel at the finer scale): the
+    1x mask rounds each edge to a pixel boundary, +-0.5 px."""
+    if keep_source and (len(set(resolutions)) != 1 or fovea):
+        raise SystemExit("--keep-source needs a single resolution and no --fovea")
+    if truth_supersample > 1 and not keep_source:
+        raise SystemExit("--truth-supersample needs --keep-source")
+    fine_rows: list[np.ndarray] = []
     out.mkdir(parents=True, exist_ok=True)
-    images, rows, metas = [], [], []
+    images, rows, metas, sources = [], [], [], []
     t0 = time.time()
     skipped = 0
     for s in range(n_scenarios):
         rng = np.random.default_rng([seed, s])
         res = resolutions[int(rng.integers(len(resolutions)))]
         try:
-            scen = parse_scenario(scenario_dict(rng, s, seed, res))
+            sd = scenario_dict(rng, s, seed, res)
+            scen = parse_scenario(sd)
             frames = list(simulate(scen, frames_per_scenario * frame_stride))[::frame_stride]
         except ScenarioError:
             skipped += 1
@@ -133,9 +161,12 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         fov = fovea_of(scen) if fovea else None
         if fov is not None:
             views.append((fov, Letterbox.fit(fov.w, fov.h, NET_W, NET_H)))
-        with Renderer(scen) as r:
+        with Renderer(scen) as r, (Renderer(supersampled(sd, truth_supersample)) if truth_supersample > 1
+                                   else contextlib.nullcontext()) as r_fine:
             for wstate in frames:
                 fr = r.render(wstate)
+                if r_fine is not None:
+                    fine_by_id = fine_truth(r_fine, wstate, truth_supersample)
                 for view, lb in views:
                     image, mask = fr.image, fr.id_mask
                     if view is not None:
@@ -146,16 +177,25 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
                     required = (vis >= min_visibility) & big
                     i = len(images)
                     images.append(lb.apply(image))
-                    for b, req in zip(boxes, required):
+                    if keep_source:
+                        sources.append(image)
+                    for vid, b, req in zip(ids, boxes, required):
                         rows.append((i, *b, 0.0 if req else 1.0))
+                        if r_fine is not None:
+                            fine_rows.append(fine_by_id.get(int(vid), np.full(4, np.nan)))
                     c = scen.camera
                     metas.append({"src_w": lb.src_w, "src_h": lb.src_h, "scenario": scen.name, "frame": wstate.frame,
                                   "hfov_deg": c.hfov_deg, "height_m": c.height_m, "pitch_deg": c.pitch_deg,
                                   "view": "full" if view is None else [view.x0, view.y0, view.w, view.h],
-                                  "n_required": int(required.sum())})
+                                  "n_required": int(required.sum())}
+                                 | ({"camera": scen.camera.model().to_dict()} if keep_source else {}))
         if (s + 1) % 10 == 0:
             print(f"{s + 1}/{n_scenarios} scenarios, {len(images)} images, {time.time() - t0:.0f}s", flush=True)
     np.save(out / "images.npy", np.stack(images))
+    if keep_source:
+        np.save(out / "source.npy", np.stack(sources))
+    if truth_supersample > 1:
+        np.save(out / "boxes_fine.npy", np.array(fine_rows, float).reshape(-1, 4))
     np.save(out / "boxes.npy", np.array(rows, float).reshape(-1, 6))
     (out / "meta.json").write_text(json.dumps({
         "net_input": [NET_W, NET_H], "seed": seed, "scenarios": n_scenarios, "skipped_scenarios": skipped,
@@ -178,10 +218,15 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--min-visibility", type=float, default=0.3)
     ap.add_argument("--min-size", type=float, default=3.0, help="px at the net's 320x192 scale")
     ap.add_argument("--fovea", action="store_true", help="also store each frame's fovea crop (second pass)")
+    ap.add_argument("--truth-supersample", type=int, default=1, metavar="N",
+                    help="with --keep-source: also store boxes from id masks rendered at N x (boxes_fine.npy)")
+    ap.add_argument("--keep-source", action="store_true",
+                    help="also store the full-resolution frames (source.npy) and cameras (one resolution only)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
-    generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea)
+    generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
+             a.keep_source, a.truth_supersample)
 
 
 if __name__ == "__main__":

@@ -31,6 +31,11 @@ distance error from 8.6 % to 2.9 % and recall from 0.95 to 1.0 (MOTA 0.95 -> 1.0
 one more net run (~3.8 ms on one thread).
 Without a camera the detector runs the full view only, unless
 ``foveate=True`` (then the crop is centred on the image centre).
+
+Sub-pixel bottom edge (``refine_bottom``, on by default): after the merge, each box's bottom
+edge is moved to the vehicle/road transition read from the source image to a fraction of a
+pixel (:mod:`monorarp.detection.bottom_edge`). On ``highway_cruise`` it takes the median distance
+error from 1.96 % to 0.10 % over 5-40 m and from 2.90 % to 1.33 % over 40-80 m.
 """
 
 from __future__ import annotations
@@ -42,12 +47,14 @@ import cv2
 import numpy as np
 
 from monorarp.camera import CameraModel
+from monorarp.detection.bottom_edge import refine_bottom as refine_bottom_edges
 from monorarp.detection.fovea import Fovea, merge
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
 from monorarp.registry import register
 from monorarp.types import Detection
 
+REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes/edge.md)
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_vehicle.onnx"
 OUTPUT_NAMES = ("heatmap", "ltrb")
 
@@ -142,6 +149,9 @@ class CenterNetDetector:
     second pass (default: when a camera is given). ``fovea_*``: see :func:`monorarp.detection.fovea.merge`
     and :meth:`~monorarp.detection.fovea.Fovea.place` (``zoom``, ``below``, ``margin_px``,
     ``dup_iou``, ``support`` (None: plain union), ``box``, ``max_height``).
+    ``refine_bottom``: move each box's bottom edge to the vehicle/road transition found in the
+    image to a fraction of a pixel (:func:`monorarp.detection.bottom_edge.refine_bottom`;
+    the detector's edge stays where no clear edge lies within a few px of it).
     """
 
     FOVEA_DEFAULTS = {"fovea_zoom": 2.0, "fovea_below": 0.25}
@@ -151,7 +161,8 @@ class CenterNetDetector:
                  camera: CameraModel | dict | None = None, foveate: bool | None = None,
                  fovea_zoom: float = FOVEA_DEFAULTS["fovea_zoom"], fovea_below: float = FOVEA_DEFAULTS["fovea_below"],
                  fovea_margin_px: float = 2.0, fovea_dup_iou: float = 0.3, fovea_support: float | None = 0.2,
-                 fovea_box: str = "auto", fovea_max_height: float = 0.35, **_ignored) -> None:
+                 fovea_box: str = "auto", fovea_max_height: float = 0.35, refine_bottom: bool = REFINE_DEFAULT,
+                 **_ignored) -> None:
         self.path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         self.session = open_session(self.path, intra_op_num_threads)
         self.input_name, self.input_h, self.input_w = expect_image_input(self.session, self.path)
@@ -172,6 +183,7 @@ class CenterNetDetector:
         self.max_detections = self.meta.max_detections if max_detections is None else int(max_detections)
         self._lb: Letterbox | None = None
         self.camera = CameraModel.from_dict(camera) if isinstance(camera, dict) else camera
+        self._foveate_arg = foveate
         self.foveate = (self.camera is not None) if foveate is None else bool(foveate)
         self.fovea_zoom, self.fovea_below = float(fovea_zoom), float(fovea_below)
         self.fovea_margin_px, self.fovea_dup_iou = float(fovea_margin_px), float(fovea_dup_iou)
@@ -180,7 +192,16 @@ class CenterNetDetector:
             raise ValueError(f"fovea_box must be 'auto', 'mean' or 'fovea', got {fovea_box!r}")
         self.fovea_box = fovea_box
         self.fovea_max_height = float(fovea_max_height)
+        if not isinstance(refine_bottom, bool):
+            raise ValueError(f"refine_bottom must be true or false, got {refine_bottom!r}")
+        self.refine_bottom = refine_bottom
         self._fovea: tuple[tuple[int, int], Fovea | None, Letterbox | None] | None = None
+
+    def set_camera(self, camera: CameraModel | None) -> None:
+        """Use another calibration from the next frame on (the fovea follows; ``foveate`` as at construction)."""
+        self.camera = camera
+        self.foveate = (camera is not None) if self._foveate_arg is None else bool(self._foveate_arg)
+        self._fovea = None
 
     def raw(self, image: np.ndarray, letterbox: Letterbox | None = None) -> tuple[np.ndarray, np.ndarray, Letterbox]:
         """Run the net: (heatmap (h, w), ltrb (4, h, w), the letterbox used)."""
@@ -228,6 +249,8 @@ class CenterNetDetector:
             boxes, scores = merge(boxes, scores, fb, fs, fov, self.score_threshold, self.fovea_support,
                                   self.fovea_margin_px, self.fovea_dup_iou, self.fovea_box,
                                   self.fovea_max_height)
+        if self.refine_bottom and len(boxes):
+            boxes, _ = refine_bottom_edges(image, boxes)
         return boxes, scores
 
     def detect(self, image: np.ndarray) -> list[Detection]:
