@@ -276,12 +276,20 @@ def kf_predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray) -> tu
     return np.einsum("...ij,...j->...i", F, x), F @ P @ np.swapaxes(F, -1, -2) + Q
 
 
-def kf_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Batched update with a position measurement ``z`` (...) of variance ``r`` (...); H = [1, 0, ...]."""
-    s = P[..., 0, 0] + r
-    k = P[..., :, 0] / s[..., None]
-    x = x + k * (z - x[..., 0])[..., None]
-    P = P - k[..., :, None] * P[..., None, 0, :]
+def kf_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, r: np.ndarray,
+              h: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Batched update with a scalar measurement ``z = h . x + noise`` (...) of variance ``r`` (...).
+
+    ``h`` (..., n): the measurement row; None: ``[1, 0, ...]`` (the position).
+    """
+    if h is None:
+        h = np.zeros(x.shape)
+        h[..., 0] = 1.0
+    ph = np.einsum("...ij,...j->...i", P, h)
+    s = np.einsum("...i,...i->...", h, ph) + r
+    k = ph / s[..., None]
+    x = x + k * (z - np.einsum("...i,...i->...", h, x))[..., None]
+    P = P - k[..., :, None] * ph[..., None, :]
     return x, P
 
 
@@ -330,7 +338,10 @@ class StateEstimator:
                  vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX,
                  side_cut_lateral_std_mps: float = 2.0, reinit_sigmas: float = 5.0,
                  contact_offset_std_m: float = 0.09, horizon_std_px: float = 0.0,
-                 edge_std_px: float = 0.9, border_edge_std_px: float = 2.7) -> None:
+                 edge_std_px: float = 0.9, border_edge_std_px: float = 2.7,
+                 lateral_pixel_std: float | None = None, robust_sigmas: float | None = None,
+                 bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
+                 bias_tau_s: float = 1.0) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -347,6 +358,18 @@ class StateEstimator:
         self.side_cut_lateral_std_mps = float(side_cut_lateral_std_mps)
         if not reinit_sigmas > 0:
             raise ValueError(f"reinit_sigmas must be > 0, got {reinit_sigmas}")
+        if robust_sigmas is not None and not robust_sigmas > 0:
+            raise ValueError(f"robust_sigmas must be > 0 or None, got {robust_sigmas}")
+        if not bias_tau_s > 0:
+            raise ValueError(f"bias_tau_s must be > 0, got {bias_tau_s}")
+        self.lateral_pixel_std = self.pixel_std if lateral_pixel_std is None else float(lateral_pixel_std)
+        self.robust_sigmas = None if robust_sigmas is None else float(robust_sigmas)
+        self.bias_tau_s = float(bias_tau_s)
+        if bias_pixel_std is None:
+            self._bias_var = None
+        else:
+            lat = bias_pixel_std if lateral_bias_pixel_std is None else lateral_bias_pixel_std
+            self._bias_var = np.array([float(lat), float(bias_pixel_std)]) ** 2   # (x, y) axes, px^2
         self.reinit_sigmas = float(reinit_sigmas)
         for name, val in (("contact_offset_std_m", contact_offset_std_m), ("horizon_std_px", horizon_std_px),
                           ("edge_std_px", edge_std_px), ("border_edge_std_px", border_edge_std_px)):
@@ -368,6 +391,7 @@ class StateEstimator:
         self._t: dict[int, float] = {}
         self._coast: dict[int, int] = {}
         self._near_offset: dict[int, float] = {}   # per track: far-edge minus near-edge lateral reading (m)
+        self._born: dict[int, float] = {}          # per track: frame time its filter (re)started (s)
 
     def measure(self, boxes: np.ndarray) -> np.ndarray:
         """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` (m) with this estimator's geometry parameters."""
@@ -422,8 +446,9 @@ class StateEstimator:
         """
         d_x, d_y = z[:, 0], np.maximum(z[:, 1], 0.1)
         px = np.sqrt(self.pixel_std ** 2 + self._extra_px_var)
+        lat_px = np.sqrt(self.lateral_pixel_std ** 2 + self._extra_px_var)
         s_y = d_y ** 2 / (self.camera.height_m * self.camera.fy) * px + 0.01
-        s_x = d_y / self.camera.fx * px + np.abs(d_x) / d_y * s_y + 0.01
+        s_x = d_y / self.camera.fx * lat_px + np.abs(d_x) / d_y * s_y + 0.01
         return np.stack([s_x, s_y], axis=1) ** 2
 
     def plausible_boxes(self, boxes: np.ndarray) -> np.ndarray:
@@ -487,7 +512,7 @@ class StateEstimator:
         if not np.isfinite(t):
             raise ValueError(f"frame time must be finite, got {t}")
         for tid in [k for k, tk in self._t.items() if t - tk > self.forget_s]:
-            self._state.pop(tid), self._t.pop(tid), self._near_offset.pop(tid, None)
+            self._state.pop(tid), self._t.pop(tid), self._near_offset.pop(tid, None), self._born.pop(tid, None)
         self._coast = {tr.id: self._coast.get(tr.id, 0) + 1 if tr.coasting else 0 for tr in tracks}
         usable = [tr for tr in tracks if self._coast[tr.id] <= self.max_coast_used]
         if not usable:
@@ -509,7 +534,8 @@ class StateEstimator:
             side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
             std[:, 1] = self.distance_std(out[:, 1], std[:, 1], horizon_std_px, side_cut)
-            return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac))
+            return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac),
+                                     age_s=float(t - self._born[tid]))
                     for tid, row, sd, ac, good in zip(ids, out, std, acc if acc is not None else [None] * len(ids), ok)
                     if good}
         out = self._difference(ids, d_y, terms, known, ok, t)
@@ -540,6 +566,13 @@ class StateEstimator:
         uncertainties from the filter's covariance (m, m/s), and with the ``"ca"`` model the
         (M, 2) longitudinal acceleration and its one-sigma uncertainty (m/s^2; else None).
 
+        With ``bias_pixel_std`` the state of each axis ends with the box edge's slowly varying
+        error ``b`` (px), a first-order Gauss-Markov process (time constant ``bias_tau_s``); the
+        measurement is ``z = p + J b + w`` with ``J`` the metres per pixel of that edge
+        (``d_y / F`` for a column, ``d_y^2 / (h_c F)`` for the bottom row) and ``w`` the white part
+        (``pixel_std``). An edge drifting for a fraction of a second then reads as either motion or
+        bias, and the velocity's covariance says so.
+
         A box cut by the image's bottom border gives no distance, but bounds it: the vehicle's
         rear is nearer than the ground seen at the bottom row (:meth:`near_limit_m`) and not
         behind the camera. The predicted distance is clamped into ``[0, near_limit]`` there
@@ -547,12 +580,20 @@ class StateEstimator:
         (e.g. after a crash) is not extrapolated through the ego.
         """
         m, n = len(ids), len(self._prior_var)
-        x, P = np.zeros((m, 2, n)), np.zeros((m, 2, n, n))
+        nb = 0 if self._bias_var is None else 1
+        N = n + nb
+        x, P = np.zeros((m, 2, N)), np.zeros((m, 2, N, N))
         for j, (i, k) in enumerate(zip(ids, known)):
             if k:
                 x[j], P[j] = self._state[i]
         dt = np.array([t - self._t[i] if k else 0.0 for i, k in zip(ids, known)])
-        F, Q = motion_model(self.motion, np.repeat(dt[:, None], 2, axis=1), self.process_std)
+        Fm, Qm = motion_model(self.motion, np.repeat(dt[:, None], 2, axis=1), self.process_std)
+        F, Q = np.zeros((m, 2, N, N)), np.zeros((m, 2, N, N))
+        F[..., :n, :n], Q[..., :n, :n] = Fm, Qm
+        if nb:
+            phi = np.exp(-dt / self.bias_tau_s)[:, None]
+            F[..., n, n] = phi
+            Q[..., n, n] = self._bias_var * (1.0 - phi ** 2)
         x, P = kf_predict(x, P, F, Q)
         # Measurements; the lateral one uses the predicted distance where the box gives none.
         y_ref = np.where(np.isfinite(d_y), d_y, x[:, 1, 0])
@@ -560,24 +601,40 @@ class StateEstimator:
         has = np.isfinite(z)
         zf = np.where(has, z, x[:, :, 0])
         r = self.measurement_var(np.nan_to_num(zf, nan=1.0))
+        h = np.zeros((m, 2, N))
+        h[..., 0] = 1.0
+        if nb:
+            d = np.maximum(np.nan_to_num(zf[:, 1], nan=1.0), 0.1)
+            h[..., n] = np.stack([d / self.camera.fx, d * d / (self.camera.height_m * self.camera.fy)], axis=1)
+        hx = np.einsum("...i,...i->...", h, x)
+        S = np.einsum("...i,...ij,...j->...", h, P, h) + r
         # A jump far beyond the innovation's spread: another vehicle's box, restart (class docstring).
-        nis = np.where(has, (zf - x[:, :, 0]) ** 2 / (P[:, :, 0, 0] + r), 0.0)
+        nis = np.where(has, (zf - hx) ** 2 / S, 0.0)
         fresh = ~known | (known & ~coasting & (nis > self.reinit_sigmas ** 2).any(axis=1))
         for j in np.flatnonzero(fresh & ok):
-            # first sighting: at the measurement, at rest (the paper's v = 0), wide prior
+            self._born[ids[j]] = t
+            # first sighting: at the measurement, at rest (the paper's v = 0), wide prior; p = z - J b
             x[j] = 0.0
             x[j, :, 0] = zf[j]
-            P[j] = np.diag(self._prior_var)[None] + 0.0
+            P[j] = np.diag(np.r_[self._prior_var, [0.0] * nb])[None] + 0.0
             P[j, :, 0, 0] = r[j]
+            if nb:
+                P[j, :, n, n] = self._bias_var
+                P[j, :, 0, 0] += h[j, :, n] ** 2 * self._bias_var
+                P[j, :, 0, n] = P[j, :, n, 0] = -h[j, :, n] * self._bias_var
+        if self.robust_sigmas is not None:
+            # Huber: an innovation beyond robust_sigmas counts as if its spread were that large
+            c2 = self.robust_sigmas ** 2
+            r = np.where(~fresh[:, None] & (nis > c2), r + S * (nis / c2 - 1.0), r)
         upd = (~fresh & ~coasting)[:, None] & has
-        xu, Pu = kf_update(x, P, np.nan_to_num(zf), r)
+        xu, Pu = kf_update(x, P, np.nan_to_num(zf), r, h)
         x, P = np.where(upd[..., None], xu, x), np.where(upd[..., None, None], Pu, P)
         if cut_bottom is not None:
             blind = cut_bottom & known & ~np.isfinite(d_y)
             x[blind, 1, 0] = np.minimum(x[blind, 1, 0], self.near_limit_m)
             behind = blind & (x[:, 1, 0] < 0.0)
             x[behind, 1, 0] = 0.0
-            x[behind, 1, 1:] = 0.0
+            x[behind, 1, 1:n] = 0.0
         for j, i in enumerate(ids):
             if ok[j]:
                 self._state[i], self._t[i] = (x[j], P[j]), t

@@ -82,6 +82,9 @@ class ObjectState:
     # estimator has them (the constant-acceleration Kalman filter); None otherwise.
     a_y: float | None = None
     a_y_std: float | None = None
+    # Time (s) since the estimator's filter of this track started (first sighting, or a restart
+    # on a jump); None where the estimator keeps no filter.
+    age_s: float | None = None
 
 
 @dataclass(frozen=True)

@@ -85,7 +85,7 @@ class ForwardCollisionWarning:
                  hold_s: float = 1.0, lateral_sigmas: float = 3.0, lateral_velocity_std_mps: float = 0.5,
                  longitudinal_sigmas: float = 1.0, max_lateral_speed_mps: float = 3.0,
                  max_closing_speed_mps: float = 45.0, accel_sigmas: float | None = 2.0,
-                 corridor_margin_m: float = 0.0, other_width_m: float = 1.8, other_length_m: float = 4.5,
+                 corridor_margin_m: float = 0.0, min_lateral_age_s: float = 0.0, other_width_m: float = 1.8, other_length_m: float = 4.5,
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
                  distance_sigmas: float = 0.0) -> None:
@@ -97,7 +97,7 @@ class ForwardCollisionWarning:
         for name, v in (("min_on_s", min_on_s), ("hold_s", hold_s), ("lateral_sigmas", lateral_sigmas),
                         ("longitudinal_sigmas", longitudinal_sigmas), ("max_lateral_speed_mps", max_lateral_speed_mps),
                         ("max_closing_speed_mps", max_closing_speed_mps),
-                        ("lateral_velocity_std_mps", lateral_velocity_std_mps)):
+                        ("lateral_velocity_std_mps", lateral_velocity_std_mps), ("min_lateral_age_s", min_lateral_age_s)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be >= 0, got {v}")
         if not np.isfinite(distance_sigmas):
@@ -108,6 +108,7 @@ class ForwardCollisionWarning:
         self.ttc_threshold_s, self.min_on_s, self.hold_s = float(ttc_threshold_s), float(min_on_s), float(hold_s)
         self.lateral_sigmas, self.lateral_velocity_std_mps = float(lateral_sigmas), float(lateral_velocity_std_mps)
         self.longitudinal_sigmas = float(longitudinal_sigmas)
+        self.min_lateral_age_s = float(min_lateral_age_s)
         if accel_sigmas is not None and not (np.isfinite(accel_sigmas) and accel_sigmas >= 0):
             raise ValueError(f"accel_sigmas must be >= 0 or None, got {accel_sigmas}")
         self.accel_sigmas = None if accel_sigmas is None else float(accel_sigmas)
@@ -143,6 +144,8 @@ class ForwardCollisionWarning:
         v_y = significant_lateral_velocity([o.v_y for o in s], v_y_std, self.longitudinal_sigmas)
         v_x_std = np.array([self.lateral_velocity_std_mps if o.v_x_std is None else o.v_x_std for o in s])
         v_x = significant_lateral_velocity([o.v_x for o in s], v_x_std, self.lateral_sigmas)
+        age = np.array([np.inf if o.age_s is None else o.age_s for o in s], dtype=float)
+        v_x = np.where(age >= self.min_lateral_age_s - 1e-9, v_x, 0.0)
         plausible = (np.abs(v_x) <= self.max_lateral_speed_mps) & (-v_y <= self.max_closing_speed_mps)
         a_y = None
         if self.accel_sigmas is not None:

@@ -138,3 +138,19 @@ def test_warning_metrics_episodes_false_alarms_and_timing():
     assert m2["false_alarms"] == 0 and m2["first_warning_ttc_s"] == pytest.approx(3.3)
     assert score.trial_passed("rear_end", m2, 2.4) and not score.trial_passed("rear_end", m2, 3.5)
     assert not score.trial_passed("rear_end", m, 2.4) and not score.trial_passed("pass_by", m, None)
+
+
+def test_early_warning_that_stays_on_into_the_conflict_is_timed_when_the_collision_course_begins():
+    # on from frame 3 while the vehicle is on no collision course; the course begins at frame 6 (true TTC 2.6 s)
+    frames = [_frame(k, ttc_gt=None if k < 6 else 2.6 - 0.1 * (k - 6), active=k >= 3, episode=0) for k in range(20)]
+    truths, results = zip(*frames)
+    m = warning_metrics(truths, results, threshold_s=3.0)
+    assert m["episodes"] == 1 and m["false_alarms"] == 0
+    assert m["episode_list"][0]["true_ttc_at_onset_s"] is None
+    assert m["first_warning_ttc_s"] == pytest.approx(2.6) and m["first_warning_early"] is True
+    assert score.trial_passed("cut_in", m, 2.4) and not score.trial_passed("cut_in", m, 2.7)
+    # the same early alert switched off before the course began: no first-warning TTC, a false alarm
+    frames = [_frame(k, ttc_gt=None if k < 6 else 2.6 - 0.1 * (k - 6), active=3 <= k < 5, episode=0)
+              for k in range(20)]
+    m = warning_metrics(*zip(*frames), threshold_s=3.0)
+    assert m["first_warning_ttc_s"] is None and m["first_warning_early"] is False and m["false_alarms"] == 1

@@ -379,3 +379,84 @@ def test_a_jump_to_another_vehicle_restarts_the_filter(level_cam):
             assert st.v_y > 3.0 and st.d_y < 30.0      # absorbed: a spurious opening speed, a lagging distance
     assert StateEstimator(cam).update([Track(id=1, box=near)], 0.0)[1].a_y == pytest.approx(0.0)
     assert StateEstimator(cam, motion="cv").update([Track(id=1, box=near)], 0.0)[1].a_y is None
+
+
+def gauss_markov(rng, n, dt, tau, std):
+    """First-order Gauss-Markov series (stationary std ``std``, time constant ``tau`` s)."""
+    phi = math.exp(-dt / tau)
+    out = np.empty(n)
+    out[0] = rng.normal(0, std)
+    for k in range(1, n):
+        out[k] = phi * out[k - 1] + rng.normal(0, std * math.sqrt(1 - phi * phi))
+    return out
+
+
+def velocity_nees(est, cam, seq, seed, bias_px=0.6, white_px=0.2, tau=0.5, skip=15):
+    """|v_y - truth| / sigma over a sequence whose box edges carry slowly varying (correlated) errors."""
+    rng = np.random.default_rng(seed)
+    n = len(seq)
+    err = np.stack([gauss_markov(rng, n, 1 / FPS, tau, bias_px) for _ in range(4)], axis=1)
+    err += rng.normal(0, white_px, (n, 4))
+    est.reset()
+    out = []
+    for k, (t, dx, dy, vx, vy) in enumerate(seq):
+        s = est.update([Track(1, tuple(np.array(vehicle_box(cam, dx, dy)) + err[k]))], t)[1]
+        out.append(abs(s.v_y - vy) / s.v_y_std)
+    return out[skip:]
+
+
+def test_bias_state_makes_the_velocity_sigma_honest_under_correlated_edge_errors(level_cam):
+    """White-noise filter: overconfident (|err|/sigma p90 far above a Gaussian's 1.64); with the
+    Gauss-Markov bias state of the same statistics it is near 1.64."""
+    seq = approach(d0=35.0, v=-5.0, dur=4.0, dx=1.0)
+    white = StateEstimator(level_cam, pixel_std=0.2)
+    biased = StateEstimator(level_cam, pixel_std=0.2, bias_pixel_std=0.6, bias_tau_s=0.5)
+    p90_w = np.percentile(np.concatenate([velocity_nees(white, level_cam, seq, s) for s in range(12)]), 90)
+    p90_b = np.percentile(np.concatenate([velocity_nees(biased, level_cam, seq, s) for s in range(12)]), 90)
+    assert p90_w > 2.5
+    assert 1.2 < p90_b < 2.1
+
+
+def test_kf_update_with_a_measurement_row_matches_the_matrix_formula():
+    from monorarp.state import kf_update
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(4, 4))
+    P = A @ A.T + np.eye(4)
+    x, h, z, r = rng.normal(size=4), np.array([1.0, 0.0, 0.0, 0.7]), 1.3, 0.25
+    H = h[None]
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + r)
+    x_ref, P_ref = x + (K @ (np.array([z]) - H @ x)), (np.eye(4) - K @ H) @ P
+    xu, Pu = kf_update(x, P, np.array(z), np.array(r), h)
+    np.testing.assert_allclose(xu, x_ref, atol=1e-12)
+    np.testing.assert_allclose(Pu, P_ref, atol=1e-12)
+    x0, P0 = kf_update(x, P, np.array(z), np.array(r))            # default row: the position
+    x1, P1 = kf_update(x, P, np.array(z), np.array(r), np.eye(4)[0])
+    np.testing.assert_allclose(x0, x1), np.testing.assert_allclose(P0, P1)
+
+
+def test_huber_update_limits_a_single_outlier(level_cam):
+    """One box 1.5 px low (below the 5-sigma restart): the robust update moves the velocity less."""
+    seq = approach(d0=30.0, v=-5.0, dur=2.0)
+    jumps = {}
+    for robust in (None, 2.0):
+        est = StateEstimator(level_cam, robust_sigmas=robust)
+        for k, (t, dx, dy, *_ ) in enumerate(seq):
+            box = np.array(vehicle_box(level_cam, dx, dy)) + (np.array([0, 0, 0, 1.5]) if k == 45 else 0.0)
+            s = est.update([Track(1, tuple(box))], t)[1]
+            if k == 45:
+                jumps[robust] = abs(s.v_y + 5.0)
+    assert jumps[2.0] < jumps[None] / 2
+
+
+def test_age_counts_from_the_filter_start_and_restarts_on_a_jump(level_cam):
+    est = StateEstimator(level_cam)
+    ages = [est.update([Track(1, vehicle_box(level_cam, 0.0, 30.0 - k * 0.1))], k / FPS)[1].age_s for k in range(10)]
+    np.testing.assert_allclose(ages, np.arange(10) / FPS)
+    s = est.update([Track(1, vehicle_box(level_cam, 3.5, 12.0))], 10 / FPS)[1]     # jumped to another vehicle
+    assert s.age_s == 0.0
+
+
+@pytest.mark.parametrize("kw", [{"robust_sigmas": 0.0}, {"bias_tau_s": 0.0}])
+def test_bad_noise_parameters_are_refused(level_cam, kw):
+    with pytest.raises(ValueError):
+        StateEstimator(level_cam, **kw)

@@ -58,7 +58,7 @@ def test_warned_object_is_the_lowest_ttc():
 
 
 @pytest.mark.parametrize("kw", [{"ttc_threshold_s": 0}, {"ttc_threshold_s": math.nan}, {"hold_s": -1},
-                                {"lateral_sigmas": -0.5}])
+                                {"lateral_sigmas": -0.5}, {"min_lateral_age_s": -1.0}])
 def test_bad_settings_are_refused(kw):
     with pytest.raises(ValueError):
         fcw(**kw)
@@ -117,3 +117,15 @@ def test_implausible_motion_raises_no_threat():
     far = ObjectState(2, 0.0, 100.0, 0.0, -60.0, v_x_std=0.1, v_y_std=0.1)
     assert fcw().threats({2: far}) == {}
     assert fcw(max_closing_speed_mps=80.0).threats({2: far})
+
+
+def test_lateral_velocity_of_a_young_filter_is_not_trusted_when_asked():
+    # next lane, 8 m ahead, a sure lateral velocity towards the ego: a threat at any age by default
+    young = ObjectState(1, 3.7, 8.0, -3.0, -4.0, v_x_std=0.1, age_s=0.3)
+    old = ObjectState(1, 3.7, 8.0, -3.0, -4.0, v_x_std=0.1, age_s=1.2)
+    assert 1 in fcw().threats({1: young})
+    assert fcw(min_lateral_age_s=1.0).threats({1: young}) == {}
+    assert 1 in fcw(min_lateral_age_s=1.0).threats({1: old})
+    # an in-lane lead needs no lateral velocity: young or not, it threatens
+    lead = ObjectState(2, 0.2, 20.0, 0.0, -10.0, v_x_std=0.1, age_s=0.1)
+    assert 2 in fcw(min_lateral_age_s=1.0).threats({2: lead})

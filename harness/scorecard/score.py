@@ -2,7 +2,8 @@
 
 * **Trial verdict.** A conflict trial (``rear_end``, ``cut_in``) passes when its first
   warning came at a true TTC of at least ``required_ttc_s`` (``warning.first_warning_ttc_s``;
-  a warning before any conflict has no true TTC and fails, as does no warning). A
+  a warning that came before the collision course and stayed on into it is timed when the
+  course began; one that ended before it has no true TTC and fails, as does no warning). A
   ``pass_by`` trial (a lane change that is no conflict) passes when no warning came.
 * **Test verdict.** One entry per test and parameter combination (speed, gap,
   deceleration, offset): passed when at least ``min_trials_passed`` of its trials pass

@@ -13,9 +13,15 @@ Definitions (the pipeline decides, :mod:`monorarp.warning`; the harness only sco
 * **First-warning TTC** (``first_warning_ttc_s``): the true TTC, at the onset of the
   run's first episode, of the ground-truth vehicle its track is matched to (IoU >=
   ``min_iou``); unmatched, the lowest true TTC in the frame. Null when no warning
-  came, or when that vehicle was on no collision course (then the warning came
-  before any conflict, and the episode is a false alarm unless the conflict
-  arrived while it was on).
+  came. When that vehicle was on no collision course at the onset, the warning came
+  *early*: if the same episode is still on when a collision course begins (the warned
+  track's vehicle, or unmatched any vehicle, gets a true TTC), the first-warning TTC
+  is the true TTC at that first frame (``first_warning_early`` true) -- the driver had
+  the alert at that TTC, which is what the protocols' "warning at TTC >= X" asks. An
+  alert that stays on all the time would pass a conflict this way, but the same alert
+  raises false alarms in the nominal runs, which the scorecard counts. Null when the
+  episode ended before any collision course (then it is a false alarm unless a
+  conflict frame fell in it).
 * **Lead time** (``lead_time_s``): contact time (first frame with the ego's crash
   flag) minus the first onset; null without a warning or a contact.
 * **Exposure**: the run's duration (frames x frame interval, s) and the ego's
@@ -43,6 +49,7 @@ class Episode:
     track_id: int | None           # the object warned for at onset
     gt_id: int | None = None       # the truth vehicle that track matches at onset
     true_ttc_at_onset_s: float | None = None
+    true_ttc_at_conflict_s: float | None = None   # onset, or the first collision-course frame of an early episode
     conflict: bool = False         # a conflict frame lies within the episode
     false_alarm: bool = False
     why: str = ""
@@ -85,6 +92,16 @@ def _matched_truth(truth: Mapping, result: FrameResult, track_id: int | None, mi
     return next((objs[g] for g, e, _ in pairs if e == e_of), None)
 
 
+def _frame_ttc(truth: Mapping, result: FrameResult, track_id: int | None,
+               min_iou: float) -> tuple[Mapping | None, float | None]:
+    """(matched truth object, true TTC) of the warned track in one frame; unmatched: the frame's lowest true TTC."""
+    obj = _matched_truth(truth, result, track_id, min_iou)
+    if obj is not None:
+        return obj, obj.get("ttc")
+    ttcs = [o["ttc"] for o in truth["objects"] if o.get("ttc") is not None]
+    return None, (min(ttcs) if ttcs else None)
+
+
 def _why(ep: Episode, truth: Mapping, result: FrameResult, obj: Mapping | None) -> str:
     """One line saying what the pipeline saw and what was true at the onset of a false alarm."""
     st = result.states.get(ep.track_id) if ep.track_id is not None else None
@@ -109,12 +126,15 @@ def warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], t
         k0, k1 = by_frame[ep.onset_frame], by_frame[ep.end_frame]
         ep.conflict = bool(conflict[k0:k1 + 1].any())
         ep.false_alarm = not ep.conflict
-        obj = _matched_truth(truths[k0], results[k0], ep.track_id, min_iou)
+        obj, ep.true_ttc_at_onset_s = _frame_ttc(truths[k0], results[k0], ep.track_id, min_iou)
         if obj is not None:
-            ep.gt_id, ep.true_ttc_at_onset_s = int(obj["id"]), obj.get("ttc")
-        else:
-            ttcs = [o["ttc"] for o in truths[k0]["objects"] if o.get("ttc") is not None]
-            ep.true_ttc_at_onset_s = min(ttcs) if ttcs else None
+            ep.gt_id = int(obj["id"])
+        ep.true_ttc_at_conflict_s = ep.true_ttc_at_onset_s
+        for k in range(k0 + 1, k1 + 1) if ep.true_ttc_at_onset_s is None else ():
+            _, ttc_k = _frame_ttc(truths[k], results[k], results[k].warning.track_id, min_iou)
+            if ttc_k is not None:       # early episode still on when the collision course began
+                ep.true_ttc_at_conflict_s = ttc_k
+                break
         if ep.false_alarm:
             ep.why = _why(ep, truths[k0], results[k0], obj)
     t = np.array([float(tr["t"]) for tr in truths], dtype=float)
@@ -129,7 +149,9 @@ def warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], t
         "episodes": len(eps),
         "false_alarms": sum(e.false_alarm for e in eps),
         "first_warning_t_s": None if first is None else first.onset_t,
-        "first_warning_ttc_s": None if first is None else first.true_ttc_at_onset_s,
+        "first_warning_ttc_s": None if first is None else first.true_ttc_at_conflict_s,
+        "first_warning_early": None if first is None else (first.true_ttc_at_onset_s is None
+                                                           and first.true_ttc_at_conflict_s is not None),
         "first_warning_false_alarm": None if first is None else first.false_alarm,
         "first_conflict_t_s": float(t[conflict_idx[0]]) if conflict_idx.size else None,
         "contact_t_s": contact_t,
