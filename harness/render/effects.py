@@ -126,11 +126,6 @@ def _chan3(field: np.ndarray) -> np.ndarray:
     return cv2.merge([field, field, field])
 
 
-def _colour_field(field: np.ndarray, bgr) -> np.ndarray:
-    """(H, W) scalar field times a BGR colour -> (H, W, 3) float32."""
-    return cv2.merge([field * np.float32(c) for c in bgr])
-
-
 def to_linear(img: np.ndarray) -> np.ndarray:
     """uint8 sRGB-ish (gamma 2.2) -> float32 linear 0..1."""
     return _TO_LIN[img]
@@ -143,11 +138,11 @@ def to_srgb8(lin: np.ndarray) -> np.ndarray:
 
 
 def linear_depth(depth01: np.ndarray, znear: float, zfar: float) -> np.ndarray:
-    """OpenGL window depth (0..1) -> camera z (m); 0 where nothing was drawn (depth 1)."""
-    d = depth01.astype(np.float64)
-    ndc = 2.0 * d - 1.0
-    z = 2.0 * znear * zfar / (zfar + znear - ndc * (zfar - znear))
-    return np.where(d >= 1.0, 0.0, z).astype(np.float32)
+    """OpenGL window depth d (0..1) -> camera z = n f / (f - d (f - n)) (m); 0 where nothing was drawn (d = 1)."""
+    d = depth01.astype(np.float32, copy=False)
+    z = np.float32(znear * zfar) / (np.float32(zfar) - d * np.float32(zfar - znear))
+    z[d >= 1.0] = 0.0
+    return z
 
 
 def ray_length_factor(camera: CameraModel) -> np.ndarray:
@@ -213,21 +208,23 @@ def headlight_gain(z: np.ndarray, id_mask: np.ndarray, camera: CameraModel, ambi
     return gain + np.float32(1.0)
 
 
-def tail_light_bloom(lin: np.ndarray, width: int) -> np.ndarray:
-    """Glow (linear RGB to add) around saturated red emitters."""
+BLOOM_BGR = (0.05, 0.10, 1.0)
+
+
+def tail_light_bloom(lin: np.ndarray, width: int) -> np.ndarray | None:
+    """(H, W) glow strength (times :data:`BLOOM_BGR`, linear) around saturated red emitters; None if none."""
     red = (lin[..., 2] > 0.6) & (lin[..., 1] < 0.2)      # BGR order: index 2 is red
     if not red.any():
-        return np.zeros_like(lin)
+        return None
     h, w = red.shape
     m = cv2.resize(red.astype(np.float32), (w // 4, h // 4), interpolation=cv2.INTER_AREA)   # blur at 1/4 size
     sigma = max(1.0, width / 320.0) / 4
     glow = cv2.GaussianBlur(m, (0, 0), sigma * 2.5) * 2.0 + cv2.GaussianBlur(m, (0, 0), sigma * 8) * 1.4
-    glow = cv2.resize(glow, (w, h), interpolation=cv2.INTER_LINEAR)
-    return _colour_field(glow, (0.05, 0.10, 1.0))
+    return cv2.resize(glow, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
 def sun_glare(camera: CameraModel, ego: VehicleState, light_w, tint) -> np.ndarray | None:
-    """(H, W, 3) linear veiling glare of a sun in (or near) view, None if behind the camera."""
+    """(H, W) veiling glare (times the tint, linear) of a sun in (or near) view, None if behind the camera."""
     lw = np.asarray(light_w, dtype=float)
     to_sun_w = -lw / np.linalg.norm(lw)
     c, s = math.cos(ego.heading), math.sin(ego.heading)
@@ -243,28 +240,26 @@ def sun_glare(camera: CameraModel, ego: VehicleState, light_w, tint) -> np.ndarr
     v = np.arange(camera.height, dtype=np.float32) - np.float32(vs)
     r2 = (u[None, :] ** 2 + v[:, None] ** 2) / np.float32(camera.width ** 2)
     g = 1.5 * np.exp(-r2 / 0.0008) + 0.35 * np.exp(-r2 / 0.02) + 0.08 * np.exp(-r2 / 0.25)
-    return _colour_field(g.astype(np.float32), tint[::-1])
+    return g.astype(np.float32)
 
 
-def wet_road(lin: np.ndarray, z: np.ndarray, id_mask: np.ndarray, rng_len: np.ndarray, camera: CameraModel,
-             rain: float, sky_lin: np.ndarray) -> None:
-    """Darken the road (non-vehicle pixels with depth) and add a Fresnel sky sheen, in place."""
+def wet_road(z: np.ndarray, id_mask: np.ndarray, rng_len: np.ndarray, camera: CameraModel, rain: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(factor, sheen): road pixels (non-vehicle, with depth) darkened by ``1 - 0.45 rain`` and given a
+    Schlick-Fresnel sky reflection ``0.3 rain (1 - cos i)^5`` (times the sky colour), cos i = camera height / range."""
     road = (id_mask < 0) & (z > 0)
     x = np.float32(1.0) - np.clip(np.float32(camera.height_m) / np.maximum(rng_len, np.float32(1e-3)), 0.0, 1.0)
     x2 = x * x
-    fres = x2 * x2 * x                                  # Schlick (1 - cos i)^5
     k = road * np.float32(-0.45 * rain) + np.float32(1.0)
-    add = road * (np.float32(0.3 * rain) * fres)
-    lin *= _chan3(k)
-    lin += _colour_field(add, sky_lin)
+    sheen = road * (np.float32(0.3 * rain) * (x2 * x2 * x))
+    return k.astype(np.float32), sheen.astype(np.float32)
 
 
-def rain_streaks(lin: np.ndarray, rain: float, seed: int, frame: int, colour_lin: np.ndarray) -> None:
-    """Blend ``int(rain * STREAKS)`` seeded slanted streaks into ``lin`` (in place)."""
-    h, w = lin.shape[:2]
+def rain_streaks(h: int, w: int, rain: float, seed: int, frame: int) -> np.ndarray | None:
+    """(H, W) opacity (0..0.35) of ``rain * STREAKS`` (per 640x360) seeded slanted anti-aliased streaks."""
     n = int(round(rain * STREAKS * w * h / (640 * 360)))
     if n == 0:
-        return
+        return None
     rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, int(frame) & 0xFFFFFFFF, 0x7A1])
     p0 = rng.uniform([0, -0.1 * h], [w, h], size=(n, 2))
     length = rng.uniform(0.03, 0.12, n) * h
@@ -273,9 +268,7 @@ def rain_streaks(lin: np.ndarray, rain: float, seed: int, frame: int, colour_lin
     layer = np.zeros((h, w), np.uint8)
     segs = np.stack([p0, p1], axis=1).round().astype(np.int32)
     cv2.polylines(layer, list(segs), False, 255, 1, cv2.LINE_AA)
-    a = layer.astype(np.float32) * np.float32(0.35 / 255)
-    lin *= _chan3(np.float32(1.0) - a)
-    lin += _colour_field(a, colour_lin)
+    return layer.astype(np.float32) * np.float32(0.35 / 255)
 
 
 def flow_per_second(z: np.ndarray, id_mask: np.ndarray, world: WorldState, camera: CameraModel
@@ -326,33 +319,68 @@ def jpeg(image: np.ndarray, quality: int) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- orchestration
+class _Affine:
+    """The per-pixel affine map ``out = lin * m + sum_j field_j * colour_j`` of the light/weather steps,
+    composed on (H, W) fields and applied to the (H, W, 3) image once (two full-colour passes in all)."""
+
+    def __init__(self, h: int, w: int) -> None:
+        self.m: np.ndarray | None = None
+        self.add = [None, None, None]     # B, G, R
+
+    def mul(self, m: np.ndarray) -> None:
+        self.m = m if self.m is None else self.m * m
+        self.add = [None if a is None else a * m for a in self.add]
+
+    def plus(self, field: np.ndarray, bgr) -> None:
+        for i, c in enumerate(bgr):
+            term = field * np.float32(c)
+            self.add[i] = term if self.add[i] is None else self.add[i] + term
+
+    def apply(self, lin: np.ndarray) -> np.ndarray:
+        if self.m is not None:
+            lin = lin * _chan3(self.m.astype(np.float32))
+        if any(a is not None for a in self.add):
+            zero = np.zeros(lin.shape[:2], np.float32)
+            lin = lin + cv2.merge([zero if a is None else a.astype(np.float32) for a in self.add])
+        return lin
+
+
 def apply(bgr: np.ndarray, z: np.ndarray | None, id_mask: np.ndarray, world: WorldState, scenario: Scenario,
           lighting: Lighting, ray_factor: np.ndarray) -> np.ndarray:
     """All image-space effects of ``scenario.conditions`` on a colour pass (BGR uint8), then the sensor."""
     c, cam, r = scenario.conditions, scenario.camera.model(), scenario.render
+    h, w = bgr.shape[:2]
     lin = to_linear(bgr)
-    sky_lin = to_linear(np.round(np.asarray(lighting.sky_srgb[::-1]) * 255).astype(np.uint8))
+    sky_lin = to_linear(np.round(np.asarray(lighting.sky_srgb[::-1]) * 255).astype(np.uint8)).astype(float)
     rng_len = z * ray_factor if z is not None else None
+    acc = _Affine(h, w)
     if lighting.night_lamps and z is not None:
         if c.headlights:
-            lin *= _chan3(headlight_gain(z, id_mask, cam, lighting.ambient))
-        lin += tail_light_bloom(lin, cam.width)
+            acc.mul(headlight_gain(z, id_mask, cam, lighting.ambient))
+        glow = tail_light_bloom(lin, cam.width)
+        if glow is not None:
+            acc.plus(glow, BLOOM_BGR)
     if c.time_of_day == "low_sun":
         glare = sun_glare(cam, world.ego, lighting.light_w, lighting.tint)
         if glare is not None:
-            lin += glare
-    if c.rain > 0:
-        wet_road(lin, z, id_mask, rng_len, cam, c.rain, sky_lin)
+            acc.plus(glare, lighting.tint[::-1])
+    if c.rain > 0 and z is not None:
+        k, sheen = wet_road(z, id_mask, rng_len, cam, c.rain)
+        acc.mul(k)
+        acc.plus(sheen, sky_lin)
     vis = extinction_visibility(c)
-    if vis is not None:
-        fog_lin = (np.asarray(FOG_RGB[::-1], dtype=np.float32) ** GAMMA) * np.float32(lighting.airlight) \
-            * np.asarray(lighting.tint[::-1], dtype=np.float32)
+    if vis is not None and z is not None:
+        fog_bgr = (np.asarray(FOG_RGB[::-1]) ** GAMMA) * lighting.airlight * np.asarray(lighting.tint[::-1])
         t = transmittance(rng_len, vis)
-        lin *= _chan3(t)
-        lin += _colour_field(np.float32(1.0) - t, fog_lin)
+        acc.mul(t)
+        acc.plus(np.float32(1.0) - t, fog_bgr)
     if c.rain > 0:
-        streak = np.maximum(sky_lin, np.float32(0.08 * lighting.airlight + 0.02)) * np.float32(1.3)
-        rain_streaks(lin, c.rain, scenario.seed, world.frame, np.minimum(streak, 1.0))
+        a = rain_streaks(h, w, c.rain, scenario.seed, world.frame)
+        if a is not None:
+            streak = np.minimum(np.maximum(sky_lin, 0.08 * lighting.airlight + 0.02) * 1.3, 1.0)
+            acc.mul(np.float32(1.0) - a)
+            acc.plus(a, streak)
+    lin = acc.apply(lin)
     if (c.exposure_s > 0 or c.readout_s > 0) and z is not None:
         lin = lens_motion(lin, flow_per_second(z, id_mask, world, cam), c.exposure_s, c.readout_s)
     out = apply_sensor(to_srgb8(lin), r.noise_std, r.blur_px, scenario.seed, world.frame)
