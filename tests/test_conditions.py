@@ -203,3 +203,26 @@ def test_shipped_light_weather_sweep_expands():
     assert len(exp.tasks) == 32 and all(t.error is None for t in exp.tasks)
     tods = {t.scenario["conditions"]["time_of_day"] for t in exp.tasks}
     assert tods == {"day", "low_sun", "dusk", "night"}
+
+
+def test_linear_depth_inverts_the_opengl_projection():
+    n, f = 0.05, 6000.0
+    z = np.array([0.5, 3.0, 40.0, 100.0, 400.0], dtype=np.float64)
+    # window depth of a point at z under glFrustum-style projection (closed form)
+    d = (f + n - 2 * f * n / z) / (f - n) * 0.5 + 0.5
+    got = effects.linear_depth(np.append(d, 1.0).astype(np.float32), n, f)
+    assert np.allclose(got[:-1], z, rtol=2e-3) and got[-1] == 0.0
+
+
+def test_axis_table_means_per_value_and_variant():
+    from harness.sweep.axes import axis_section, axis_table
+
+    rows = [{"id": str(i), "variant": var, "status": "ok", "grid": {"conditions.fog_visibility_m": fog, "x": x},
+             "metrics": {"detection.recall": rec}}
+            for i, (var, fog, x, rec) in enumerate([("a", None, 1, 1.0), ("a", None, 2, 0.8), ("a", 100.0, 1, 0.4),
+                                                    ("a", 100.0, 2, 0.2), ("b", None, 1, 0.5), ("b", 100.0, 1, None)])]
+    t = axis_table(rows, "conditions.fog_visibility_m", "detection.recall")
+    assert t["a"] == [(None, pytest.approx(0.9)), (100.0, pytest.approx(0.3))]
+    assert t["b"] == [(None, 0.5), (100.0, None)]
+    html = axis_section(rows, ["conditions.fog_visibility_m", "x"], ["detection.recall"])
+    assert html.count("<img") == 2
