@@ -1,11 +1,13 @@
 """Detector recall within 40 m and rendering frames/s under each light/weather condition.
 
-Usage: python benchmarks/bench_conditions.py [--frames N] [--conditions day,dusk,...] [--fps-only]
+Usage: python benchmarks/bench_conditions.py [--frames N] [--conditions day,dusk,...] [--fps-only | --recall-only]
+       [--dehaze]
 
 Recall: highway_cruise (640x360, its seed) rendered with each ``conditions:`` block; the
 shipped detector (centernet) runs on every frame; a ground-truth vehicle counts when its
 visibility (id pass, so fog and darkness do not hide it) is >= 0.3 and its d_long <= 40 m;
 a detection matches at IoU >= 0.5 (harness.scoring.match.split_ignored, as the scorer).
+``--dehaze``: the detector removes haze first (``centernet`` with ``dehaze: true``).
 Recall = matched counted / counted, pooled over frames; ratio = recall / recall(day).
 Frames/s: render() alone (colour + id pass + depth + effects, no simulation), wall clock
 and process CPU time per frame.
@@ -49,9 +51,10 @@ def scenario(cond: dict | None, width: int = 640, height: int = 360):
     return parse_scenario(d)
 
 
-def recall(cond: dict | None, n_frames: int) -> tuple[float, int, int]:
+def recall(cond: dict | None, n_frames: int, dehaze: bool = False) -> tuple[float, int, int]:
     sc = scenario(cond)
-    detector = build_pipeline({"detector": {"name": "centernet"}}, sc.camera.model()).detector
+    det = {"name": "centernet", "kwargs": {"dehaze": True} if dehaze else {}}
+    detector = build_pipeline({"detector": det}, sc.camera.model()).detector
     tp = n = 0
     with Renderer(sc) as r:
         for world in simulate(sc, n_frames):
@@ -86,6 +89,7 @@ def main() -> None:
     ap.add_argument("--conditions", default=",".join(CONDITIONS))
     ap.add_argument("--fps-only", action="store_true")
     ap.add_argument("--recall-only", action="store_true")
+    ap.add_argument("--dehaze", action="store_true", help="detector with dehaze: true")
     args = ap.parse_args()
     names = args.conditions.split(",")
     day = None
@@ -95,7 +99,7 @@ def main() -> None:
             fps, cpu_ms = render_fps(CONDITIONS[name], min(args.frames, 60))
             line += f" render {fps:5.1f} frames/s ({cpu_ms:5.1f} ms CPU/frame)"
         if not args.fps_only:
-            rec, tp, n = recall(CONDITIONS[name], args.frames)
+            rec, tp, n = recall(CONDITIONS[name], args.frames, args.dehaze)
             day = rec if name == "day" else day
             ratio = f"{rec / day:.3f}" if day else "-"
             line += f"  recall<=40m {rec:.3f} ({tp}/{n})  ratio to day {ratio}"

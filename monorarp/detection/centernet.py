@@ -141,7 +141,8 @@ class CenterNetDetector:
     ``camera``: the calibrated camera (or its dict); places the fovea. ``foveate``: run the
     second pass (default: when a camera is given). ``fovea_*``: see :func:`monorarp.detection.fovea.merge`
     and :meth:`~monorarp.detection.fovea.Fovea.place` (``zoom``, ``below``, ``margin_px``,
-    ``dup_iou``, ``support`` (None: plain union), ``box``, ``max_height``).
+    ``dup_iou``, ``support`` (None: plain union), ``box``, ``max_height``). ``dehaze``: remove haze
+    (:func:`monorarp.detection.dehaze.dehaze`, dark channel prior) from each image before both passes.
     """
 
     FOVEA_DEFAULTS = {"fovea_zoom": 2.0, "fovea_below": 0.25}
@@ -151,7 +152,7 @@ class CenterNetDetector:
                  camera: CameraModel | dict | None = None, foveate: bool | None = None,
                  fovea_zoom: float = FOVEA_DEFAULTS["fovea_zoom"], fovea_below: float = FOVEA_DEFAULTS["fovea_below"],
                  fovea_margin_px: float = 2.0, fovea_dup_iou: float = 0.3, fovea_support: float | None = 0.2,
-                 fovea_box: str = "auto", fovea_max_height: float = 0.35, **_ignored) -> None:
+                 fovea_box: str = "auto", fovea_max_height: float = 0.35, dehaze: bool = False, **_ignored) -> None:
         self.path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         self.session = open_session(self.path, intra_op_num_threads)
         self.input_name, self.input_h, self.input_w = expect_image_input(self.session, self.path)
@@ -181,6 +182,7 @@ class CenterNetDetector:
         self.fovea_box = fovea_box
         self.fovea_max_height = float(fovea_max_height)
         self._fovea: tuple[tuple[int, int], Fovea | None, Letterbox | None] | None = None
+        self.dehaze = bool(dehaze)
 
     def raw(self, image: np.ndarray, letterbox: Letterbox | None = None) -> tuple[np.ndarray, np.ndarray, Letterbox]:
         """Run the net: (heatmap (h, w), ltrb (4, h, w), the letterbox used)."""
@@ -216,6 +218,10 @@ class CenterNetDetector:
 
     def detect_arrays(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """BGR uint8 image -> (boxes (K, 4) source px, unclipped; scores (K,)), both passes merged."""
+        if self.dehaze:
+            from monorarp.detection.dehaze import dehaze
+
+            image = dehaze(image)
         hm, lt, lb = self.raw(image)
         boxes, scores = decode(hm, lt, self.meta.stride, self.score_threshold, self.max_detections)
         boxes = lb.to_src(boxes, clip=False)
