@@ -13,6 +13,10 @@ pixel holds the vehicle covering its centre; ids colour-encoded as id + 1 in 24
 bits). The ego is not drawn. :mod:`harness.render.visibility` explains the
 extra sub-window id renders behind ``visibility``.
 
+A scenario's ``conditions:`` block (time of day, fog, rain, lens; :mod:`harness.render.effects`)
+changes the scene lighting and, through the colour pass's depth buffer (read only then), adds
+image-space effects; without it (or with a neutral one) nothing of that runs.
+
 pyrender's ``IntrinsicsCamera`` puts pixel centres at half-integers of its
 cx/cy (OpenGL window convention); OpenCV's are at integers, so cx/cy are passed
 shifted by +0.5 (checked by the tests against ``cv2.projectPoints``).
