@@ -9,6 +9,8 @@ visibility (id pass, so fog and darkness do not hide it) is >= 0.3 and its d_lon
 a detection matches at IoU >= 0.5 (harness.scoring.match.split_ignored, as the scorer).
 ``--dehaze``: the detector removes haze first (``centernet`` with ``dehaze: true``).
 Recall = matched counted / counted, pooled over frames; ratio = recall / recall(day).
+Precision = matched / detections, leaving out (as the scorer) detections matched to or covering
+an uncounted vehicle and those whose box bottom meets the ground beyond 40 m.
 Frames/s: render() alone (colour + id pass + depth + effects, no simulation), wall clock
 and process CPU time per frame.
 """
@@ -24,6 +26,7 @@ from harness.ground_truth import frame_truth
 from harness.render import Renderer
 from harness.run import build_pipeline
 from harness.scenario import load_scenario_dict, parse_scenario
+from harness.scoring.evaluate import out_of_range
 from harness.scoring.match import MIN_IOU, as_boxes, split_ignored
 from harness.simulation import simulate
 
@@ -51,11 +54,11 @@ def scenario(cond: dict | None, width: int = 640, height: int = 360):
     return parse_scenario(d)
 
 
-def recall(cond: dict | None, n_frames: int, dehaze: bool = False) -> tuple[float, int, int]:
+def recall(cond: dict | None, n_frames: int, dehaze: bool = False) -> tuple[float, int, int, float]:
     sc = scenario(cond)
     det = {"name": "centernet", "kwargs": {"dehaze": True} if dehaze else {}}
     detector = build_pipeline({"detector": det}, sc.camera.model()).detector
-    tp = n = 0
+    tp = n = n_pred = 0
     with Renderer(sc) as r:
         for world in simulate(sc, n_frames):
             f = r.render(world)
@@ -64,10 +67,12 @@ def recall(cond: dict | None, n_frames: int, dehaze: bool = False) -> tuple[floa
             counted = np.array([o["visibility"] >= MIN_VISIBILITY and o["d_long"] <= MAX_RANGE_M for o in objs],
                                dtype=bool)
             dets = as_boxes([d.box for d in detector.detect(f.image)])
-            kept, _ = split_ignored(as_boxes([o["box"] for o in objs]), counted, dets, MIN_IOU, 0.5)
+            kept, ignored = split_ignored(as_boxes([o["box"] for o in objs]), counted, dets, MIN_IOU, 0.5,
+                                          out_of_range(dets, r.camera, MAX_RANGE_M))
             tp += len(kept)
+            n_pred += int((~ignored).sum())
             n += int(counted.sum())
-    return (tp / n if n else float("nan")), tp, n
+    return (tp / n if n else float("nan")), tp, n, (tp / n_pred if n_pred else float("nan"))
 
 
 def render_fps(cond: dict | None, n_frames: int) -> tuple[float, float]:
@@ -99,10 +104,10 @@ def main() -> None:
             fps, cpu_ms = render_fps(CONDITIONS[name], min(args.frames, 60))
             line += f" render {fps:5.1f} frames/s ({cpu_ms:5.1f} ms CPU/frame)"
         if not args.fps_only:
-            rec, tp, n = recall(CONDITIONS[name], args.frames, args.dehaze)
+            rec, tp, n, prec = recall(CONDITIONS[name], args.frames, args.dehaze)
             day = rec if name == "day" else day
             ratio = f"{rec / day:.3f}" if day else "-"
-            line += f"  recall<=40m {rec:.3f} ({tp}/{n})  ratio to day {ratio}"
+            line += f"  recall<=40m {rec:.3f} ({tp}/{n})  ratio to day {ratio}  precision {prec:.3f}"
         print(line, flush=True)
 
 
