@@ -47,15 +47,18 @@ MAX_RANGE_M = 40.0
 MIN_VISIBILITY = 0.3
 
 
-def scenario(cond: dict | None, width: int = 640, height: int = 360):
+def scenario(cond: dict | None, width: int = 640, height: int = 360, seed: int | None = None):
     d = load_scenario_dict("scenarios/highway_cruise.yaml")
+    if seed is not None:
+        d["seed"] = seed
     d["camera"] = {"width": width, "height": height}
     d["conditions"] = cond
     return parse_scenario(d)
 
 
-def recall(cond: dict | None, n_frames: int, dehaze: bool = False) -> tuple[float, int, int, float]:
-    sc = scenario(cond)
+def recall(cond: dict | None, n_frames: int, dehaze: bool = False, seed: int | None = None
+           ) -> tuple[float, int, int, float]:
+    sc = scenario(cond, seed=seed)
     det = {"name": "centernet", "kwargs": {"dehaze": True} if dehaze else {}}
     detector = build_pipeline({"detector": det}, sc.camera.model()).detector
     tp = n = n_pred = 0
@@ -95,6 +98,7 @@ def main() -> None:
     ap.add_argument("--fps-only", action="store_true")
     ap.add_argument("--recall-only", action="store_true")
     ap.add_argument("--dehaze", action="store_true", help="detector with dehaze: true")
+    ap.add_argument("--seed", type=int, default=None, help="scenario seed (default: highway_cruise's, 1)")
     args = ap.parse_args()
     names = args.conditions.split(",")
     day = None
@@ -104,7 +108,7 @@ def main() -> None:
             fps, cpu_ms = render_fps(CONDITIONS[name], min(args.frames, 60))
             line += f" render {fps:5.1f} frames/s ({cpu_ms:5.1f} ms CPU/frame)"
         if not args.fps_only:
-            rec, tp, n, prec = recall(CONDITIONS[name], args.frames, args.dehaze)
+            rec, tp, n, prec = recall(CONDITIONS[name], args.frames, args.dehaze, args.seed)
             day = rec if name == "day" else day
             ratio = f"{rec / day:.3f}" if day else "-"
             line += f"  recall<=40m {rec:.3f} ({tp}/{n})  ratio to day {ratio}  precision {prec:.3f}"
