@@ -193,6 +193,20 @@ class Render(_Model):
         return self
 
 
+class Conditions(_Model):
+    """Light, weather and lens (:mod:`harness.render.effects`). Absent: a clear day, no lens effect."""
+
+    time_of_day: Literal["day", "low_sun", "dusk", "night"] = Field("day", description=(
+        "day: render.light_*; low_sun: sun 6 deg up ahead; dusk: sky light only; night: no ambient light"))
+    fog_visibility_m: float | None = Field(None, gt=0, le=100000, description=(
+        "visibility V, m: contrast exp(-3.912 d / V) at range d; null: no fog"))
+    rain: float = Field(0.0, ge=0, le=1, description="0 dry .. 1 heavy: streaks, wet road, extinction")
+    headlights: bool = Field(True, description="ego low beams at dusk and night")
+    exposure_s: float = Field(0.0, ge=0, le=0.05, description="shutter open time (motion blur), s")
+    readout_s: float = Field(0.0, ge=0, le=0.05, description="rolling-shutter readout, top row to bottom row, s")
+    jpeg_quality: int | None = Field(None, ge=1, le=100, description="JPEG quality 1..100; null: none")
+
+
 class Scenario(_Model):
     name: str
     seed: int = 0
@@ -207,6 +221,7 @@ class Scenario(_Model):
     render: Render = Render()
     camera_motion: CameraMotion | None = Field(None, description=(
         "pitch/roll of the camera relative to the road per frame (harness.camera_motion); null: none"))
+    conditions: Conditions | None = None
     end_on_contact_s: float | None = Field(None, ge=0, le=10, description=(
         "end the run this long (s) after the ego's first contact (crash flag); null: run the whole duration"))
 

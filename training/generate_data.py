@@ -11,6 +11,10 @@ tight boxes of the visible pixels of every vehicle (from the renderer's id mask,
 source pixels). A box is *required* when its visibility (visible / unoccluded,
 unbounded pixels) is >= ``--min-visibility`` and its height and width at the
 net's scale are >= ``--min-size`` px; other visible vehicles are stored as *ignored*.
+With ``--conditions P`` a fraction P of the scenarios also gets a random ``conditions:``
+block (time of day, fog 40-1000 m, rain, motion blur, JPEG; :func:`random_conditions`),
+drawn from its own random stream so the rest of each scenario is unchanged; boxes stay
+those of the id pass, so vehicles hidden by fog or darkness are still labelled.
 
     python -m training.generate_data --out data/train --scenarios 300 --seed 0
     python -m training.generate_data --out data/val --scenarios 40 --seed 100000 --resolutions 640x360
@@ -85,6 +89,21 @@ def scenario_dict(rng: np.random.Generator, index: int, seed: int, resolution: t
     }
 
 
+def random_conditions(rng: np.random.Generator) -> dict:
+    """A random ``conditions:`` block (see :class:`harness.scenario.Conditions`)."""
+    tod = str(rng.choice(["day", "low_sun", "dusk", "night"], p=[0.35, 0.2, 0.25, 0.2]))
+    out: dict = {"time_of_day": tod}
+    if rng.random() < 0.5:
+        out["fog_visibility_m"] = round(float(np.exp(rng.uniform(np.log(40.0), np.log(1000.0)))), 1)
+    if rng.random() < 0.3:
+        out["rain"] = round(float(rng.uniform(0.2, 1.0)), 2)
+    if rng.random() < 0.3:
+        out["exposure_s"] = round(float(rng.uniform(0.002, 0.02)), 4)
+    if rng.random() < 0.3:
+        out["jpeg_quality"] = int(rng.integers(30, 90))
+    return out
+
+
 def visible_boxes(id_mask: np.ndarray, full_pixels: dict[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ids, boxes (K, 4) tight over visible pixels, continuous px; visibility (K,))."""
     labels = id_mask + 1
@@ -127,7 +146,8 @@ def fine_truth(renderer: Renderer, world, n: int) -> dict[int, np.ndarray]:
 
 def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, frame_stride: int,
              resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
-             fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1) -> None:
+             fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1,
+             conditions: float = 0.0) -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
     the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
@@ -152,6 +172,9 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         res = resolutions[int(rng.integers(len(resolutions)))]
         try:
             sd = scenario_dict(rng, s, seed, res)
+            crng = np.random.default_rng([seed, s, 0xC0D])
+            if crng.random() < conditions:
+                sd["conditions"] = random_conditions(crng)
             scen = parse_scenario(sd)
             frames = list(simulate(scen, frames_per_scenario * frame_stride))[::frame_stride]
         except ScenarioError:
@@ -187,6 +210,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
                     metas.append({"src_w": lb.src_w, "src_h": lb.src_h, "scenario": scen.name, "frame": wstate.frame,
                                   "hfov_deg": c.hfov_deg, "height_m": c.height_m, "pitch_deg": c.pitch_deg,
                                   "view": "full" if view is None else [view.x0, view.y0, view.w, view.h],
+                                  "conditions": None if scen.conditions is None else scen.conditions.model_dump(),
                                   "n_required": int(required.sum())}
                                  | ({"camera": scen.camera.model().to_dict()} if keep_source else {}))
         if (s + 1) % 10 == 0:
@@ -201,7 +225,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         "net_input": [NET_W, NET_H], "seed": seed, "scenarios": n_scenarios, "skipped_scenarios": skipped,
         "frames_per_scenario": frames_per_scenario, "frame_stride": frame_stride,
         "resolutions": [list(r) for r in resolutions], "min_visibility": min_visibility,
-        "min_size_net_px": min_size, "fovea": fovea, "images": metas}, indent=1))
+        "min_size_net_px": min_size, "fovea": fovea, "conditions_fraction": conditions, "images": metas}, indent=1))
     req = sum(m["n_required"] for m in metas)
     print(f"wrote {len(images)} images, {req} required boxes, {len(rows) - req} ignored to {out} "
           f"({skipped} scenarios skipped) in {time.time() - t0:.0f}s", flush=True)
@@ -222,11 +246,15 @@ def main(argv: list[str] | None = None) -> None:
                     help="with --keep-source: also store boxes from id masks rendered at N x (boxes_fine.npy)")
     ap.add_argument("--keep-source", action="store_true",
                     help="also store the full-resolution frames (source.npy) and cameras (one resolution only)")
+    ap.add_argument("--conditions", type=float, default=0.0, metavar="P",
+                    help="fraction of scenarios with random light/weather/lens conditions (default 0)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
+    if not 0.0 <= a.conditions <= 1.0:
+        ap.error("--conditions must be a fraction in [0, 1]")
     generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
-             a.keep_source, a.truth_supersample)
+             a.keep_source, a.truth_supersample, a.conditions)
 
 
 if __name__ == "__main__":

@@ -13,6 +13,10 @@ pixel holds the vehicle covering its centre; ids colour-encoded as id + 1 in 24
 bits). The ego is not drawn. :mod:`harness.render.visibility` explains the
 extra sub-window id renders behind ``visibility``.
 
+A scenario's ``conditions:`` block (time of day, fog, rain, lens; :mod:`harness.render.effects`)
+changes the scene lighting and, through the colour pass's depth buffer (read only then), adds
+image-space effects; without it (or with a neutral one) nothing of that runs.
+
 pyrender's ``IntrinsicsCamera`` puts pixel centres at half-integers of its
 cx/cy (OpenGL window convention); OpenCV's are at integers, so cx/cy are passed
 shifted by +0.5 (checked by the tests against ``cv2.projectPoints``).
@@ -33,7 +37,7 @@ import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
 
-from harness.render import geometry, meshes, road, shading, visibility  # noqa: E402
+from harness.render import effects, geometry, meshes, road, shading, visibility  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
 from harness.scenario import Scenario  # noqa: E402
 from harness.world import VehicleState, WorldState  # noqa: E402
@@ -96,7 +100,15 @@ def _read_colour_only(self, scene, flags):
     GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
     fmt, ch = (GL.GL_RGBA, 4) if flags & pyrender.RenderFlags.SEG else (GL.GL_RGB, 3)
     buf = GL.glReadPixels(0, 0, width, height, fmt, GL.GL_UNSIGNED_BYTE)
-    return np.frombuffer(buf, dtype=np.uint8).reshape(height, width, ch)[::-1], None
+    colour = np.frombuffer(buf, dtype=np.uint8).reshape(height, width, ch)[::-1]
+    if flags & pyrender.RenderFlags.SEG or not getattr(self, "_want_depth", False):
+        return colour, None
+    # conditions (fog, lamps, motion): the window depth (0..1) of the colour pass, one sample per pixel
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_DEPTH_BUFFER_BIT, GL.GL_NEAREST)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+    dbuf = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
+    return colour, np.frombuffer(dbuf, dtype=np.float32).reshape(height, width)[::-1]
 
 
 _draw_orders = itertools.count()
@@ -189,10 +201,15 @@ class Renderer:
         self._light_w = np.asarray(opts.light_direction, dtype=float)
         self._intensity = opts.light_intensity
         self._noise_std, self._blur_px, self._seed = opts.noise_std, opts.blur_px, scenario.seed
-        self._scene = pyrender.Scene(bg_color=(*SKY_RGB, 1.0), ambient_light=(0.0, 0.0, 0.0))
+        # conditions: None keeps the default path (no depth read, no effects) exactly as without the block
+        self._lighting = None if effects.is_neutral(scenario.conditions) else effects.scene_lighting(scenario)
+        sky = SKY_RGB if self._lighting is None else self._lighting.sky_srgb
+        if self._lighting is not None:
+            self._light_w, self._intensity = np.asarray(self._lighting.light_w, dtype=float), self._lighting.intensity
+        self._scene = pyrender.Scene(bg_color=(*sky, 1.0), ambient_light=(0.0, 0.0, 0.0))
         self._material = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0))
         for tm in road.road_trimeshes(scenario.road).values():
-            colors = shading.shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w, self._intensity)
+            colors = self._shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w)
             _add_mesh(self._scene, _flat_mesh(tm.vertices[tm.faces], colors, self._material))
         c = self.camera
         self._cam = pyrender.IntrinsicsCamera(c.fx, c.fy, c.cx + PIXEL_CENTRE_SHIFT, c.cy + PIXEL_CENTRE_SHIFT,
@@ -205,6 +222,14 @@ class Renderer:
         inner = self._pr._renderer
         inner._read_main_framebuffer = types.MethodType(_read_colour_only, inner)
         inner._sorted_mesh_nodes = types.MethodType(_sorted_mesh_nodes, inner)
+        inner._want_depth = self._lighting is not None
+        self._ray_factor = None if self._lighting is None else effects.ray_length_factor(c)
+
+    def _shade(self, albedo: np.ndarray, normals: np.ndarray, light: np.ndarray) -> np.ndarray:
+        """Face colours (0..1 sRGB) under this scenario's light (and time of day, with ``conditions``)."""
+        if self._lighting is None:
+            return shading.shade(albedo, normals, light, self._intensity)
+        return effects.shade_faces(albedo, normals, light, self._lighting)
 
     # ----------------------------------------------------------------- lifecycle
     def close(self) -> None:
@@ -225,7 +250,7 @@ class Renderer:
         heading = entry.heading_bin * HEADING_BIN_RAD
         # Light into the model frame: the model is rotated by -heading about Z in W.
         light_model = shading.rotate_z(self._light_w, heading)
-        colors = shading.shade(entry.albedo, entry.normals, light_model, self._intensity)
+        colors = self._shade(entry.albedo, entry.normals, light_model)
         return _flat_mesh(entry.triangles, colors, self._material)
 
     def _sync_vehicles(self, vehicles: tuple[VehicleState, ...]) -> list[pyrender.Node]:
@@ -292,7 +317,7 @@ class Renderer:
         vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
         c = self.frame_camera
         self._set_intrinsics(c.fx, c.fy, c.cx, c.cy, c.width, c.height)
-        rgb, _ = self._pr.render(self._scene, flags=pyrender.RenderFlags.FLAT)
+        rgb, depth = self._pr.render(self._scene, flags=pyrender.RenderFlags.FLAT)
         seg_map = {n: _seg_colour(v.id + 1) for n, v, d in zip(nodes, vehicles, drawn) if d}
         if seg_map:
             seg, _ = self._pr.render(self._scene, flags=pyrender.RenderFlags.SEG, seg_node_map=seg_map)
@@ -300,8 +325,13 @@ class Renderer:
         else:
             id_mask = np.full((c.height, c.width), -1, dtype=np.int32)
         full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn)
-        image = apply_sensor(np.ascontiguousarray(rgb[..., ::-1]), self._noise_std, self._blur_px,
-                             self._seed, world.frame)
+        if self._lighting is None:
+            image = apply_sensor(np.ascontiguousarray(rgb[..., ::-1]), self._noise_std, self._blur_px,
+                                 self._seed, world.frame)
+        else:
+            z = effects.linear_depth(depth, ZNEAR_M, ZFAR_M)
+            image = effects.apply(np.ascontiguousarray(rgb[..., ::-1]), z, id_mask, world, self.scenario,
+                                  self._lighting, self._ray_factor)
         return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else c)
 
     def _full_pixels(self, id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=False) -> dict[int, float]:

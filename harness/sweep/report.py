@@ -288,7 +288,10 @@ def render_report(rows: Sequence[Mapping], runs_dir: Path, *, name: str, spec_pa
     if failed:
         parts.append("<h2>Failed runs</h2>" + _table(["id", "status", "error"],
                                                       [[r["id"], r["status"], r["error"]] for r in failed], left=3))
-    parts += [runs_section(rows, grid_keys, headline), distance_section(rows, frames),
+    from harness.sweep.axes import axis_section
+
+    parts += [runs_section(rows, grid_keys, headline), axis_section(rows, grid_keys, headline),
+              distance_section(rows, frames),
               ttc_section(rows, frames, threshold_s), tracker_section(rows), runtime_section(rows),
               "</body></html>\n"]
     return "\n".join(parts)

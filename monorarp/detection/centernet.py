@@ -151,7 +151,8 @@ class CenterNetDetector:
     ``dup_iou``, ``support`` (None: plain union), ``box``, ``max_height``).
     ``refine_bottom``: move each box's bottom edge to the vehicle/road transition found in the
     image to a fraction of a pixel (:func:`monorarp.detection.bottom_edge.refine_bottom`;
-    the detector's edge stays where no clear edge lies within a few px of it).
+    the detector's edge stays where no clear edge lies within a few px of it). ``dehaze``: remove haze
+    (:func:`monorarp.detection.dehaze.dehaze`, dark channel prior) from each image before both passes.
     """
 
     FOVEA_DEFAULTS = {"fovea_zoom": 2.0, "fovea_below": 0.25}
@@ -162,6 +163,7 @@ class CenterNetDetector:
                  fovea_zoom: float = FOVEA_DEFAULTS["fovea_zoom"], fovea_below: float = FOVEA_DEFAULTS["fovea_below"],
                  fovea_margin_px: float = 2.0, fovea_dup_iou: float = 0.3, fovea_support: float | None = 0.2,
                  fovea_box: str = "auto", fovea_max_height: float = 0.35, refine_bottom: bool = REFINE_DEFAULT,
+                 dehaze: bool = False,
                  **_ignored) -> None:
         self.path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         self.session = open_session(self.path, intra_op_num_threads)
@@ -196,6 +198,7 @@ class CenterNetDetector:
             raise ValueError(f"refine_bottom must be true or false, got {refine_bottom!r}")
         self.refine_bottom = refine_bottom
         self._fovea: tuple[tuple[int, int], Fovea | None, Letterbox | None] | None = None
+        self.dehaze = bool(dehaze)
 
     def set_camera(self, camera: CameraModel | None) -> None:
         """Use another calibration from the next frame on (the fovea follows; ``foveate`` as at construction)."""
@@ -237,6 +240,10 @@ class CenterNetDetector:
 
     def detect_arrays(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """BGR uint8 image -> (boxes (K, 4) source px, unclipped; scores (K,)), both passes merged."""
+        if self.dehaze:
+            from monorarp.detection.dehaze import dehaze
+
+            image = dehaze(image)
         hm, lt, lb = self.raw(image)
         boxes, scores = decode(hm, lt, self.meta.stride, self.score_threshold, self.max_detections)
         boxes = lb.to_src(boxes, clip=False)

@@ -1,0 +1,80 @@
+"""Report section: every headline metric against the value of each grid axis.
+
+For an axis, the runs are grouped by (variant, axis value) and a metric's mean over
+the group's finished runs is plotted (so with several axes each point averages over
+the others). Numeric axes are drawn on a numeric x axis; an axis with any
+non-numeric value (e.g. ``conditions.time_of_day``, or ``null`` = effect off) is
+drawn as categories in the spec's order.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from harness.sweep.expand import format_value
+
+MAX_METRICS = 8
+
+
+def _num(v: Any) -> float | None:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        return None
+    return float(v)
+
+
+def axis_table(rows: Sequence[Mapping], key: str, metric: str) -> dict[str, list[tuple[Any, float | None]]]:
+    """{variant: [(axis value, mean of ``metric`` over ok runs with that value)]} in first-seen value order."""
+    values: list[Any] = []
+    for r in rows:
+        v = r["grid"].get(key)
+        if v not in values:
+            values.append(v)
+    out: dict[str, list[tuple[Any, float | None]]] = {}
+    for variant in dict.fromkeys(r["variant"] for r in rows):
+        pts = []
+        for v in values:
+            xs = [_num(r["metrics"].get(metric)) for r in rows
+                  if r["variant"] == variant and r["status"] == "ok" and r["grid"].get(key) == v]
+            xs = [x for x in xs if x is not None]
+            pts.append((v, sum(xs) / len(xs) if xs else None))
+        out[variant] = pts
+    return out
+
+
+def axis_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Sequence[str]) -> str:
+    """HTML (heading, note, one figure per axis) or "" when the sweep has no grid."""
+    from harness.sweep.report import _png
+
+    if not grid_keys or not rows:
+        return ""
+    import matplotlib.pyplot as plt
+
+    metrics = list(headline)[:MAX_METRICS]
+    parts = ["<h2>Metrics against each grid axis</h2><p class='note'>Mean over the finished runs with that "
+             "axis value (and every value of the other axes), per variant.</p>"]
+    for key in grid_keys:
+        ncol = min(3, len(metrics))
+        nrow = math.ceil(len(metrics) / ncol)
+        fig, axs = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.0 * nrow), squeeze=False)
+        for ax, metric in zip(axs.ravel(), metrics):
+            table = axis_table(rows, key, metric)
+            any_values = next(iter(table.values()), [])
+            numeric = all(_num(v) is not None for v, _ in any_values)
+            for variant, pts in table.items():
+                xs = [float(v) if numeric else i for i, (v, _) in enumerate(pts)]
+                ys = [float("nan") if y is None else y for _, y in pts]
+                ax.plot(xs, ys, marker="o", label=variant)
+            if not numeric:
+                ax.set_xticks(range(len(any_values)), [format_value(v) for v, _ in any_values], rotation=30)
+            ax.set_title(metric, fontsize=9)
+            ax.set_xlabel(key, fontsize=8)
+            ax.grid(alpha=0.3)
+        for ax in axs.ravel()[len(metrics):]:
+            ax.set_visible(False)
+        if len(table) > 1:
+            axs.ravel()[0].legend(fontsize=7)
+        fig.tight_layout()
+        parts.append(_png(fig))
+    return "\n".join(parts)
