@@ -35,7 +35,8 @@ pitch is poorly known warns earlier rather than late); negative k takes the far 
 lane changes on a highway move at 0.5-2 m/s) or a closing speed above
 ``max_closing_speed_mps`` (45 m/s, 162 km/h) is no vehicle's motion but a measurement
 artefact (a box jumping as an occluder passes, a far truck read at the wrong scale):
-such an object raises no threat.
+such an object raises no threat. ``max_raw_lateral_speed_mps`` (default None: off) applies
+a limit to the estimated lateral speed itself, before any shrinkage by its sigma.
 
 **Episodes (hysteresis).** A threat must persist for ``min_on_s`` (frame time)
 before the alert comes on (one-frame blips raise nothing); the alert then stays
@@ -88,7 +89,7 @@ class ForwardCollisionWarning:
                  corridor_margin_m: float = 0.0, min_lateral_age_s: float = 0.0, other_width_m: float = 1.8, other_length_m: float = 4.5,
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
-                 distance_sigmas: float = 0.0) -> None:
+                 distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = None) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):
@@ -103,6 +104,10 @@ class ForwardCollisionWarning:
         if not np.isfinite(distance_sigmas):
             raise ValueError(f"distance_sigmas must be finite, got {distance_sigmas}")
         self.distance_sigmas = float(distance_sigmas)
+        if max_raw_lateral_speed_mps is not None and not (np.isfinite(max_raw_lateral_speed_mps)
+                                                          and max_raw_lateral_speed_mps > 0):
+            raise ValueError(f"max_raw_lateral_speed_mps must be > 0 or None, got {max_raw_lateral_speed_mps}")
+        self.max_raw_lateral_speed_mps = None if max_raw_lateral_speed_mps is None else float(max_raw_lateral_speed_mps)
         if camera is not None:
             camera_forward_offset_m, camera_lateral_offset_m = camera.forward_offset_m, camera.lateral_offset_m
         self.ttc_threshold_s, self.min_on_s, self.hold_s = float(ttc_threshold_s), float(min_on_s), float(hold_s)
@@ -147,6 +152,9 @@ class ForwardCollisionWarning:
         age = np.array([np.inf if o.age_s is None else o.age_s for o in s], dtype=float)
         v_x = np.where(age >= self.min_lateral_age_s - 1e-9, v_x, 0.0)
         plausible = (np.abs(v_x) <= self.max_lateral_speed_mps) & (-v_y <= self.max_closing_speed_mps)
+        if self.max_raw_lateral_speed_mps is not None:
+            raw_v_x = np.array([o.v_x for o in s], dtype=float)
+            plausible &= ~(np.abs(raw_v_x) > self.max_raw_lateral_speed_mps)
         a_y = None
         if self.accel_sigmas is not None:
             a = np.array([0.0 if o.a_y is None else o.a_y for o in s], dtype=float)

@@ -58,7 +58,8 @@ def test_warned_object_is_the_lowest_ttc():
 
 
 @pytest.mark.parametrize("kw", [{"ttc_threshold_s": 0}, {"ttc_threshold_s": math.nan}, {"hold_s": -1},
-                                {"lateral_sigmas": -0.5}, {"min_lateral_age_s": -1.0}])
+                                {"lateral_sigmas": -0.5}, {"min_lateral_age_s": -1.0},
+                                {"max_raw_lateral_speed_mps": 0.0}, {"max_raw_lateral_speed_mps": math.inf}])
 def test_bad_settings_are_refused(kw):
     with pytest.raises(ValueError):
         fcw(**kw)
@@ -117,6 +118,17 @@ def test_implausible_motion_raises_no_threat():
     far = ObjectState(2, 0.0, 100.0, 0.0, -60.0, v_x_std=0.1, v_y_std=0.1)
     assert fcw().threats({2: far}) == {}
     assert fcw(max_closing_speed_mps=80.0).threats({2: far})
+
+
+def test_raw_lateral_speed_limit_applies_before_the_sigma_shrinkage():
+    # Two lanes over, read at 8 m/s across with a wide sigma (a box cut by the side border):
+    # shrunk by 3 sigma it is a plausible 2 m/s and reaches the corridor; the raw limit refuses it.
+    cut = ObjectState(1, 7.5, 10.0, -8.0, -10.0, v_x_std=2.0, v_y_std=0.1)
+    assert fcw(lateral_sigmas=3.0).threats({1: cut})
+    assert fcw(lateral_sigmas=3.0, max_raw_lateral_speed_mps=6.0).threats({1: cut}) == {}
+    # A real cut-in at 2.5 m/s is under the limit: still a threat.
+    cut_in = ObjectState(2, 3.7, 8.0, -2.5, -4.0, v_x_std=0.1, v_y_std=0.1)
+    assert fcw(max_raw_lateral_speed_mps=6.0).threats({2: cut_in})
 
 
 def test_lateral_velocity_of_a_young_filter_is_not_trusted_when_asked():
