@@ -341,7 +341,7 @@ class StateEstimator:
                  edge_std_px: float = 0.9, border_edge_std_px: float = 2.7,
                  lateral_pixel_std: float | None = None, robust_sigmas: float | None = None,
                  bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
-                 bias_tau_s: float = 1.0) -> None:
+                 bias_tau_s: float = 1.0, offset_learn_margin_px: float | None = None) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -356,6 +356,9 @@ class StateEstimator:
         self.border_tol_px = None if border_tol_px is None else float(border_tol_px)
         self.max_coast_used = int(max_coast_used)
         self.side_cut_lateral_std_mps = float(side_cut_lateral_std_mps)
+        if offset_learn_margin_px is not None and not (np.isfinite(offset_learn_margin_px) and offset_learn_margin_px >= 0):
+            raise ValueError(f"offset_learn_margin_px must be >= 0 or None, got {offset_learn_margin_px}")
+        self.offset_learn_margin_px = offset_learn_margin_px
         if not reinit_sigmas > 0:
             raise ValueError(f"reinit_sigmas must be > 0, got {reinit_sigmas}")
         if robust_sigmas is not None and not robust_sigmas > 0:
@@ -405,6 +408,11 @@ class StateEstimator:
         lateral readings (from the vehicle's true length and width differing from the assumed ones)
         is learnt per track (running mean); once the far edge is cut, the near-edge reading is
         shifted by it, so switching edges makes no jump (which would read as lateral velocity).
+        The offset is learnt only from boxes whose sides both lie ``offset_learn_margin_px`` or more
+        inside the image (None, the default: ``border_tol_px``). A margin (e.g. 16 px) keeps a detector box
+        that stops short of the border while its vehicle enters the view from the side from teaching a
+        wrong offset, but also keeps a whole vehicle near the border from teaching the right one
+        (tests/test_state.py: a 1.6 m/s lateral-velocity jump), so it is opt-in.
         """
         d_y = box_distance(self.camera, boxes, self.contact_offset_m, self.ground_clearance_m, self.border_tol_px)
         terms = lateral_terms(self.camera, boxes, self.vehicle_width_m, self.vehicle_length_m,
@@ -413,6 +421,8 @@ class StateEstimator:
                                self.ground_clearance_m)
         flags = border_flags(self.camera, boxes, self.border_tol_px)
         whole = ~flags[:, 0] & ~flags[:, 1] & np.isfinite(near[:, 0]) & np.isfinite(d_y)
+        if self.offset_learn_margin_px is not None:
+            whole &= ~border_flags(self.camera, boxes, self.offset_learn_margin_px)[:, :2].any(axis=1)
         right, left = boxes[:, 0] > self.camera.cx, boxes[:, 2] < self.camera.cx
         uses_near = (right & flags[:, 1]) | (left & flags[:, 0])
         offset = lateral_from_terms(terms, d_y) - lateral_from_terms(near, d_y)

@@ -35,8 +35,9 @@ pitch is poorly known warns earlier rather than late); negative k takes the far 
 lane changes on a highway move at 0.5-2 m/s) or a closing speed above
 ``max_closing_speed_mps`` (45 m/s, 162 km/h) is no vehicle's motion but a measurement
 artefact (a box jumping as an occluder passes, a far truck read at the wrong scale):
-such an object raises no threat. ``max_raw_lateral_speed_mps`` (default None: off) applies
-a limit to the estimated lateral speed itself, before any shrinkage by its sigma.
+such an object raises no threat. ``max_raw_lateral_speed_mps`` (6 m/s; None: off) applies a
+limit to the estimated lateral speed itself, before any shrinkage by its sigma: a box cut by
+the side border has a wide lateral-velocity sigma, so 8 m/s shrunk by 3 sigma looked plausible.
 
 **Episodes (hysteresis).** A threat must persist for ``min_on_s`` (frame time)
 before the alert comes on (one-frame blips raise nothing); the alert then stays
@@ -89,7 +90,7 @@ class ForwardCollisionWarning:
                  corridor_margin_m: float = 0.0, min_lateral_age_s: float = 0.0, other_width_m: float = 1.8, other_length_m: float = 4.5,
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
-                 distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = None) -> None:
+                 distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = 6.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):

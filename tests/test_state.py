@@ -460,3 +460,23 @@ def test_age_counts_from_the_filter_start_and_restarts_on_a_jump(level_cam):
 def test_bad_noise_parameters_are_refused(level_cam, kw):
     with pytest.raises(ValueError):
         StateEstimator(level_cam, **kw)
+
+
+def test_offset_learn_margin_keeps_a_short_box_from_teaching_the_near_edge_offset():
+    """A next-lane car entering from the right: the detector's box stops 12 px short of the border
+    (its far edge is no edge), then reaches it. Learnt from the short box, the near-edge reading is
+    shifted by ~-2.4 m for good (a false in-path car); with a 16 px margin it is not learnt."""
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, pitch_rad=math.radians(2.0))
+    short, cut = (500.0, 200.0, 627.0, 276.0), (441.1, 200.0, 639.5, 245.7)
+
+    def lateral(**kw):
+        est = StateEstimator(cam, **kw)
+        for k in range(3):
+            est.update([Track(1, short)], k / FPS)
+        s = est.update([Track(1, cut)], 3 / FPS)[1]
+        return s.d_x
+
+    fresh = StateEstimator(cam).update([Track(1, cut)], 0.0)[1].d_x        # the near-edge reading alone
+    assert fresh == pytest.approx(3.77, abs=0.05)
+    assert lateral(offset_learn_margin_px=16) == pytest.approx(fresh, abs=0.3)
+    assert lateral() < fresh - 1.0

@@ -113,7 +113,7 @@ def test_implausible_motion_raises_no_threat():
     # Two lanes over, read as cutting across at 8 m/s: an artefact, not a vehicle (not clipped into a threat).
     jumpy = ObjectState(1, 7.5, 10.0, -8.0, -10.0, v_x_std=0.1, v_y_std=0.1)
     assert fcw().threats({1: jumpy}) == {}
-    assert fcw(max_lateral_speed_mps=20.0).threats({1: jumpy})        # the same, allowed: in path
+    assert fcw(max_lateral_speed_mps=20.0, max_raw_lateral_speed_mps=None).threats({1: jumpy})  # allowed: in path
     # A far track closing at 60 m/s (216 km/h): a mis-scaled box, not a car.
     far = ObjectState(2, 0.0, 100.0, 0.0, -60.0, v_x_std=0.1, v_y_std=0.1)
     assert fcw().threats({2: far}) == {}
@@ -124,11 +124,11 @@ def test_raw_lateral_speed_limit_applies_before_the_sigma_shrinkage():
     # Two lanes over, read at 8 m/s across with a wide sigma (a box cut by the side border):
     # shrunk by 3 sigma it is a plausible 2 m/s and reaches the corridor; the raw limit refuses it.
     cut = ObjectState(1, 7.5, 10.0, -8.0, -10.0, v_x_std=2.0, v_y_std=0.1)
-    assert fcw(lateral_sigmas=3.0).threats({1: cut})
-    assert fcw(lateral_sigmas=3.0, max_raw_lateral_speed_mps=6.0).threats({1: cut}) == {}
+    assert fcw(lateral_sigmas=3.0, max_raw_lateral_speed_mps=None).threats({1: cut})
+    assert fcw(lateral_sigmas=3.0).threats({1: cut}) == {}              # the default limit: 6 m/s
     # A real cut-in at 2.5 m/s is under the limit: still a threat.
     cut_in = ObjectState(2, 3.7, 8.0, -2.5, -4.0, v_x_std=0.1, v_y_std=0.1)
-    assert fcw(max_raw_lateral_speed_mps=6.0).threats({2: cut_in})
+    assert fcw().threats({2: cut_in})
 
 
 def test_lateral_velocity_of_a_young_filter_is_not_trusted_when_asked():
