@@ -162,16 +162,22 @@ def _labels(rows: list[tuple[str, list[float], int, str]]) -> Labels:
                   source=[r[3] for r in rows])
 
 
-def parse_object_labels(path: Path) -> Labels:
-    """A ``label_2`` file (15 fields a line; a 16th, a detection score, is refused: this reads truth)."""
-    rows = []
+def _label_lines(path: Path, n_fields: int, kind: str):
+    """(line number, fields, ``"FILE: line N"``) of each non-blank line; KittiInputError on a wrong field count."""
     for k, line in enumerate(_read_lines(path), 1):
         parts = line.split()
         if not parts:
             continue
         where = f"{path}: line {k}"
-        if len(parts) != N_OBJECT_FIELDS:
-            raise KittiInputError(f"{where}: {len(parts)} fields, a KITTI object label has {N_OBJECT_FIELDS}")
+        if len(parts) != n_fields:
+            raise KittiInputError(f"{where}: {len(parts)} fields, a KITTI {kind} label has {n_fields}")
+        yield k, parts, where
+
+
+def parse_object_labels(path: Path) -> Labels:
+    """A ``label_2`` file (15 fields a line; a 16th, a detection score, is refused: this reads truth)."""
+    rows = []
+    for k, parts, where in _label_lines(path, N_OBJECT_FIELDS, "object"):
         typ, nums = _parse_object_fields(parts, where)
         rows.append((typ, nums, len(rows), f"{path.name}:{k}"))
     return _labels(rows)
@@ -180,13 +186,7 @@ def parse_object_labels(path: Path) -> Labels:
 def parse_tracking_labels(path: Path) -> dict[int, Labels]:
     """A ``label_02`` file (17 fields a line) -> labels per frame index."""
     per_frame: dict[int, list] = {}
-    for k, line in enumerate(_read_lines(path), 1):
-        parts = line.split()
-        if not parts:
-            continue
-        where = f"{path}: line {k}"
-        if len(parts) != N_TRACKING_FIELDS:
-            raise KittiInputError(f"{where}: {len(parts)} fields, a KITTI tracking label has {N_TRACKING_FIELDS}")
+    for k, parts, where in _label_lines(path, N_TRACKING_FIELDS, "tracking"):
         try:
             frame, tid = int(parts[0]), int(parts[1])
         except ValueError:
