@@ -4,7 +4,7 @@ A *scenario instance* (the resolved scenario — every override and grid value a
 camera and render options included — and a frame count) is simulated and rendered once; its
 frames, ground truth and camera are stored and fed to every run that shares them (the variants
 of a sweep, the trackers of ``monorarp bench trackers``, later sweeps, ``--resume``).
-:meth:`FrameCache.frames` has the contract of :func:`harness.run.rendered_frames`, so a run
+:meth:`FrameCache.frames` has the contract of :func:`harness.frame_feed.rendered_frames`, so a run
 gets the same (Frame, truth) sequence whether its frames were rendered or read back.
 
 **Key** — sha256 of the canonical JSON of :func:`key_material`: the resolved scenario, the
@@ -157,7 +157,7 @@ class FrameCache:
     def frames(self, scenario: Scenario, n_frames: int) -> Iterator[tuple[Frame, dict]]:
         """(Frame, truth) of each of the ``n_frames`` frames of ``scenario``, from the cache or rendered.
 
-        As :func:`harness.run.rendered_frames`, scenario errors raise here, before any frame.
+        As :func:`harness.frame_feed.rendered_frames`, scenario errors raise here, before any frame.
         """
         material = key_material(scenario, n_frames)
         key = cache_key(material)
@@ -171,9 +171,9 @@ class FrameCache:
             if hit is not None:
                 _unlock(lock)
                 return hit
-            import harness.run as hrun
+            from harness import frame_feed
 
-            source = hrun.rendered_frames(scenario, n_frames)
+            source = frame_feed.rendered_frames(scenario, n_frames)
         except BaseException:
             _unlock(lock)
             raise
