@@ -3,7 +3,7 @@
 Per track, ``N`` particles over the box state ``(cx, cy, w, h)`` (pixels), all tracks in one
 ``(T, N, 4)`` array: predict (box velocity in px/s x frame interval from timestamps), associate
 (Hungarian on ``1 - IoU``), update, resample. Tracker control (confirmation, coasting, lost
-tracks, re-identification), suppressed outputs and the output box: docs/particle_tracker.md.
+tracks, re-identification), suppressed outputs and the output box: docs/tracking.md.
 """
 
 from __future__ import annotations
