@@ -100,6 +100,7 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
     if gps_speed and _takes_ego_speed(pipeline.risk):
         pipeline.risk = GpsFallbackRisk(pipeline.risk, true_speeds)
     n = scenario.n_frames if n_frames is None else int(n_frames)
+    # looked up on the module, so tests can count renders by patching harness.frame_feed.rendered_frames
     source = frame_feed.rendered_frames(scenario, n) if cache is None else cache.frames(scenario, n)
     preload = fits_in_memory(n, camera, preload_bytes)
     run_info = {"scenario": scenario.name, "seed": scenario.seed, "fps_scenario": scenario.fps,
