@@ -1,42 +1,9 @@
 """Regression check of run metrics against a committed baseline (``monorarp check``).
 
-Baseline file (strict JSON)::
-
-    {
-      "version": 1,
-      "defaults": [                       # optional; metric-name patterns (fnmatch), first match wins
-        {"metric": "distance.by_range.*.rel_err_median", "tolerance": 0.01, "rel_tolerance": 0.1,
-         "direction": "lower_is_better"}, ...
-      ],
-      "runs": {
-        "<run id>": {
-          "<dotted metric>": {"value": 0.0123, "tolerance": 0.003, "rel_tolerance": 0.1,
-                              "direction": "lower_is_better"}, ...
-        }, ...
-      }
-    }
-
-A metric entry needs ``value`` (a number, or null for "undefined", e.g. a
-precision with no warnings); ``tolerance``/``rel_tolerance``/``direction``
-default to the first matching ``defaults`` rule, else to :data:`DEFAULT_RULES`.
-The allowed slack is ``max(tolerance, rel_tolerance * |value|)`` (units of the
-metric; ``rel_tolerance`` defaults to 0). Directions:
-
-* ``lower_is_better`` — regression when ``now > value + slack``;
-* ``higher_is_better`` — regression when ``now < value - slack``;
-* ``two_sided`` — regression when ``|now - value| > slack`` (e.g. frame counts).
-
-A change beyond the slack in the good direction is reported as ``improved``
-(passes; run ``--update`` to tighten the baseline). A value that is null on one
-side only is a regression (``changed``). A baseline metric missing from the
-results, a baseline run missing from the results, or a run that failed, is a
-regression too. Runs in the results that the baseline lacks are listed as
-``new`` (not checked, no failure).
-
-Runs are simulation outputs, so they are deterministic on one machine; the
-tolerances absorb the small differences across machines and library builds
-(BLAS, OpenCV, Mesa rasterisation) and flag real changes. Wall-clock metrics
-(``runtime_ms.*``, ``fps``) are never part of a baseline.
+Each baseline metric has a ``value`` and a slack ``max(tolerance, rel_tolerance * |value|)`` in
+the metric's units, judged by its ``direction`` (``lower_is_better``, ``higher_is_better``,
+``two_sided``); missing metrics, missing or failed runs are regressions. The baseline format and
+every rule: docs/metrics.md (regression check).
 """
 
 from __future__ import annotations

@@ -2,46 +2,9 @@
 
 A *scenario instance* (the resolved scenario — every override and grid value applied, seed,
 camera and render options included — and a frame count) is simulated and rendered once; its
-frames, ground truth and camera are stored and fed to every run that shares them (the variants
-of a sweep, the trackers of ``monorarp bench trackers``, later sweeps, ``--resume``).
-:meth:`FrameCache.frames` has the contract of :func:`harness.run.rendered_frames`, so a run
-gets the same (Frame, truth) sequence whether its frames were rendered or read back.
-
-**Key** — sha256 of the canonical JSON of :func:`key_material`: the resolved scenario, the
-frame count, :data:`RENDERER_VERSION`, a digest of the source of every module that makes frames
-or truth (:data:`CODE_FILES`: rendering, simulation, ground truth, camera model, TTC), the
-versions of the packages that make them (:data:`PACKAGES`), the Python minor version and the
-GL implementation (:func:`harness.render.renderer.gl_identity`: another rasteriser, e.g. a
-GPU's, may colour edge pixels differently, so its frames get their own entries).
-
-**Entry** ``ROOT/entries/<key[:2]>/<key>/``:
-
-* ``frames.bin`` — each frame's raw pixels (H x W x 3 uint8, BGR as rendered), compressed with
-  zlib level 1, concatenated (sizes in the manifest). Measured on 60 highway_cruise frames at
-  640x360 (flat-shaded, noise-free): 7 KB per frame (1 % of raw), 1.7 ms to compress, 1.1 ms to
-  decompress; with sensor noise (std 3) 61 % of raw, 12 / 3 ms. PNG level 1 was 4.9 ms to encode
-  for a similar size, npz (deflate 6) 4.6 ms, raw ``.npy`` 100 % of raw — against ~25-90 ms to
-  simulate and render one frame.
-* ``truth.jsonl`` — one ground-truth record per frame (:func:`harness.ground_truth.frame_truth`;
-  JSON round-trips its floats exactly).
-* ``camera.json`` — :meth:`monorarp.camera.CameraModel.to_dict`.
-* ``manifest.json`` — written last: format, key, frame count, image shape and dtype, the
-  compressed size of each frame, size and sha256 of each file above, the key material.
-
-**Writes are atomic**: an entry is built in ``ROOT/tmp/`` while the frames are rendered and
-renamed into place only when the last frame has been rendered (a killed or failed writer
-leaves only a temporary directory, removed later). A per-key lock file (``flock``) makes a
-second process that wants the same instance wait for the first and read its entry; where
-locks do not work (or after :attr:`FrameCache.lock_wait_s`) both render, the first rename
-wins and the other's copy is discarded (the same content either way).
-
-**Reads are checked**: sizes and sha256 of every file are verified before the first frame is
-handed out; a truncated or corrupt entry is removed and the instance rendered again.
-
-**Size limit**: after each new entry, the least recently used entries (last use = the
-manifest's mtime, touched on every hit) are removed until the total is at most
-:attr:`FrameCache.max_bytes`; the entry just written is always kept. A cache that cannot
-store (read-only, disk full) never fails a run: the frames are still rendered and used.
+frames, ground truth and camera are stored and fed to every run that shares them.
+:meth:`FrameCache.frames` has the contract of :func:`harness.frame_feed.rendered_frames`. Key,
+entry format, atomic writes, checked reads and the size limit: docs/sweeps.md (frame cache).
 """
 
 from __future__ import annotations
@@ -157,7 +120,7 @@ class FrameCache:
     def frames(self, scenario: Scenario, n_frames: int) -> Iterator[tuple[Frame, dict]]:
         """(Frame, truth) of each of the ``n_frames`` frames of ``scenario``, from the cache or rendered.
 
-        As :func:`harness.run.rendered_frames`, scenario errors raise here, before any frame.
+        As :func:`harness.frame_feed.rendered_frames`, scenario errors raise here, before any frame.
         """
         material = key_material(scenario, n_frames)
         key = cache_key(material)
@@ -171,9 +134,9 @@ class FrameCache:
             if hit is not None:
                 _unlock(lock)
                 return hit
-            import harness.run as hrun
+            from harness import frame_feed
 
-            source = hrun.rendered_frames(scenario, n_frames)
+            source = frame_feed.rendered_frames(scenario, n_frames)
         except BaseException:
             _unlock(lock)
             raise

@@ -1,41 +1,9 @@
 """Exact per-frame ground truth, as one JSON-ready record per frame.
 
-Definitions (ego and camera frames of :mod:`monorarp.camera`; road frame of
-:mod:`harness.world`; geometry helpers in :mod:`harness.render.geometry`):
-
-* ``d_long`` (m): longitudinal distance from the camera to the vehicle's rear
-  face = the smallest ego-frame ``y`` of its four footprint corners.
-* ``d_lat`` (m): ego-frame ``x`` (positive right) of the vehicle's centre.
-* ``v_long``, ``v_lat`` (m/s): its road-frame velocity minus the ego's, rotated
-  into the ego frame (``y`` and ``x`` components).
-* ``ttc`` (s): :func:`monorarp.ttc.time_to_collision` of the vehicle's footprint
-  (its axis-aligned extent in the ego frame) against the ego's own footprint
-  (:func:`monorarp.ttc.ego_extent`) at the current relative velocity; ``None``
-  when they do not touch within 10 s.
-* ``lane_rel``: the vehicle's lane index minus the ego's.
-* ``box`` (px): the tight box of the vehicle's pixels in the id pass: pixel
-  columns c_min..c_max and rows r_min..r_max give
-  ``[c_min - 0.5, r_min - 0.5, c_max + 0.5, r_max + 0.5]`` (so clipped to the image).
-* ``visibility``: visible pixels / pixels the vehicle would cover with nothing
-  in front of it and no image border (``RenderedFrame.full_pixels``).
-* ``corners_cam`` (m): the 8 corners of its 3-D box (footprint length x width,
-  from the ground to the mesh's roof height) in the OpenCV camera frame, in the
-  order rear-left, rear-right, front-right, front-left on the ground, then the
-  same four at the roof (left/right as seen by the vehicle itself).
-
-* ``ego.crashed`` / ``crashed``: highway-env's collision flag of the ego / the
-  vehicle (set at the first contact and kept from then on).
-
-One object per vehicle with at least one visible pixel, sorted by id.
-
-**A moving camera** (the scenario's ``camera_motion:`` block, :mod:`harness.camera_motion`):
-``d_long``, ``d_lat``, ``v_long``, ``v_lat`` and ``ttc`` stay in the road-aligned ego frame
-(origin at the camera, ``y`` along the ego's heading parallel to the road, ``z`` up): the
-distances the metrics compare do not move with the camera's pitch or roll. ``box`` and
-``corners_cam`` are in the frame's *true* camera. The record then carries
-``camera``: ``pitch_rad``, ``roll_rad`` (the true pose), ``horizon_row`` (px, the true
-forward vanishing point's row), ``pitch_offset_rad`` and ``horizon_offset_px`` (true minus
-nominal). ``camera.json`` holds the nominal calibration only, which is all the pipeline gets.
+Distances (m), velocities (m/s) and TTC (s) in the ego frame of :mod:`monorarp.camera` (road-aligned
+with a moving camera), boxes (px) and 3-D corners (m) in the frame's true camera; one object per
+vehicle with at least one visible pixel, sorted by id. Every field's definition:
+docs/formats.md (``ground_truth.jsonl``); the moving camera's ``camera`` block: docs/camera_motion.md.
 """
 
 from __future__ import annotations

@@ -1,51 +1,10 @@
 """Forward-collision warning (FCW): per-object states -> warning episodes.
 
-A per-frame "some TTC < 2 s" flag is not how a forward-collision warning is
-judged; a driver sees *episodes*: an alert that comes on once, stays on while
-the conflict lasts, and names the object it is for. This stage turns the state
-estimator's output into that decision, the same on simulated frames and on a
-user's video.
-
-**In-path test with uncertainty.** An object threatens when its rectangle
-(``other_width_m`` x ``other_length_m``, rear face at ``d_y``, centre line at
-``d_x``) reaches the ego's corridor (the ego's footprint widened by
-``corridor_margin_m`` on each side) within ``ttc_threshold_s`` at constant
-relative velocity (closed form, :func:`monorarp.ttc.time_to_collision`). The
-lateral velocity enters only as far as it is significant: it is shrunk towards
-zero by ``lateral_sigmas`` of its one-sigma uncertainty,
-``v_x' = sign(v_x) max(0, |v_x| - k sigma_vx)`` (the Kalman filter's covariance;
-``lateral_velocity_std_mps`` when the estimator gives none). A vehicle in the
-next lane whose lateral estimate drifts while it leaves the view (a few m/s of
-spurious lateral velocity, poorly observed) is therefore not in path, while a
-vehicle that really cuts in (a lateral velocity its filter is sure of) is.
-The closing speed is discounted the same way by ``longitudinal_sigmas`` of its
-uncertainty (no discount when the estimator gives none): a track just born, whose
-velocity the filter has not yet settled (wide prior), cannot raise an alert on a
-transient. The closing acceleration enters the same way (``accel_sigmas`` of its
-uncertainty, from the constant-acceleration filter): a lead that brakes is met
-sooner than at constant velocity (:func:`monorarp.ttc.closing_time`), which is what
-a braking-lead test (NHTSA LVD) needs, since the velocity alone lags the braking.
-
-**Distance uncertainty.** With ``distance_sigmas`` = k (default 0) the object's rear
-face is taken at ``d_y - k d_y_std`` (the near side of its distance interval; the
-state estimator's ``d_y_std`` includes the horizon's uncertainty, so a camera whose
-pitch is poorly known warns earlier rather than late); negative k takes the far side.
-
-**Plausibility.** A significant lateral speed above ``max_lateral_speed_mps`` (3 m/s;
-lane changes on a highway move at 0.5-2 m/s) or a closing speed above
-``max_closing_speed_mps`` (45 m/s, 162 km/h) is no vehicle's motion but a measurement
-artefact (a box jumping as an occluder passes, a far truck read at the wrong scale):
-such an object raises no threat. ``max_raw_lateral_speed_mps`` (6 m/s; None: off) applies a
-limit to the estimated lateral speed itself, before any shrinkage by its sigma: a box cut by
-the side border has a wide lateral-velocity sigma, so 8 m/s shrunk by 3 sigma looked plausible.
-
-**Episodes (hysteresis).** A threat must persist for ``min_on_s`` (frame time)
-before the alert comes on (one-frame blips raise nothing); the alert then stays
-on until no threat has been seen for ``hold_s``, so a flickering threat makes
-one episode, and every episode lasts at least ``hold_s``. While on, the alert is
-for the threat with the lowest TTC (the previous object is kept on ties).
-
-Units: m, m/s, s. Ego frame of :mod:`monorarp.camera`.
+An object threatens when its rectangle reaches the ego's corridor within ``ttc_threshold_s`` at
+constant relative velocity (or acceleration), each motion term counted only beyond its
+uncertainty; implausible motion raises nothing; a threat that persists for ``min_on_s`` starts an
+episode that lasts until none has been seen for ``hold_s``. Units: m, m/s, s; ego frame of
+:mod:`monorarp.camera`. The rules in full: docs/warning.md.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ import json
 import pickle
 from pathlib import Path
 
-from harness.run import rendered_frames
+from harness.frame_feed import rendered_frames
 from harness.scenario import parse_scenario
 from harness.scorecard.run import ScorecardOptions, build_tasks
 from harness.scorecard.score import trial_passed

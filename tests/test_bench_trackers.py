@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-import harness.run
+import harness.frame_feed
 from harness.bench.trackers import pooled_tracking
 from harness.oracle import OracleDetector
 from monorarp import registry
@@ -114,7 +114,7 @@ def test_unknown_tracker_refused_before_rendering(tmp_path, monkeypatch, capsys)
     def no_render(*a, **k):
         raise AssertionError("rendered")
 
-    monkeypatch.setattr(harness.run, "rendered_frames", no_render)
+    monkeypatch.setattr(harness.frame_feed, "rendered_frames", no_render)
     scen = tmp_path / "tiny.yaml"
     scen.write_text(yaml.safe_dump(SCENARIO))
     rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "particle,boosting",

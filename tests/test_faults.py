@@ -30,7 +30,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from harness.run import OUTPUT_NAMES
+from harness.run_outputs import OUTPUT_NAMES
 from harness.sweep.summary import deterministic_metrics
 from monorarp.cli import main
 

@@ -18,7 +18,8 @@ from monorarp.cli import main
 from monorarp.horizon import CalibratedHorizon, OnlineHorizon, pitch_std_px, row_std_px
 from monorarp.pipeline import Pipeline, PipelineConfig, run_sync, run_threaded
 from monorarp.risk import ttc_std
-from monorarp.state import StateEstimator, box_distance
+from monorarp.state import StateEstimator
+from monorarp.state_geometry import box_distance
 from monorarp.types import Frame, FrameResult, HorizonReading, ObjectState, RiskEstimate, Track
 
 NOMINAL = CameraModel.from_fov(640, 360, 70.0, 1.3, math.radians(2.0))
@@ -61,7 +62,7 @@ def test_pitch_std_px_is_the_row_shift_of_that_pitch():
 # ------------------------------------------------------------------ online horizon on rendered frames
 @pytest.fixture(scope="module")
 def vibrating_frames():
-    from harness.run import rendered_frames
+    from harness.frame_feed import rendered_frames
     from harness.scenario import parse_scenario
 
     s = parse_scenario({"name": "v", "seed": 4, "duration_s": 2.0, "road": {"lanes": 3},

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
-import harness.run
+import harness.frame_feed
 from harness.frame_cache import FRAMES, MANIFEST, TRUTH, FrameCache
 from harness.scenario import parse_scenario
 from harness.sweep.executors import RenderOnceQueue
@@ -35,15 +35,15 @@ WALL_CLOCK = ("runtime_ms", "fps", "wall_time_s")
 
 @pytest.fixture()
 def renders(monkeypatch):
-    """Counts calls of harness.run.rendered_frames (the only place frames are made)."""
+    """Counts calls of harness.frame_feed.rendered_frames (the only place frames are made)."""
     calls: list[int] = []
-    real = harness.run.rendered_frames
+    real = harness.frame_feed.rendered_frames
 
     def counting(scenario, n_frames=None):
         calls.append(scenario.seed)
         return real(scenario, n_frames)
 
-    monkeypatch.setattr(harness.run, "rendered_frames", counting)
+    monkeypatch.setattr(harness.frame_feed, "rendered_frames", counting)
     return calls
 
 

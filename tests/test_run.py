@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from harness.render.meshes import vehicle_layout
-from harness.run import OUTPUT_NAMES, run_scenario
+from harness.run import run_scenario
+from harness.run_outputs import OUTPUT_NAMES
 from harness.scenario import parse_scenario
 from harness.scoring.records import read_csv
 from harness.video import read_video

@@ -10,8 +10,8 @@ import pytest
 
 from monorarp.camera import CameraModel
 from monorarp.registry import create
-from monorarp.state import (StateEstimator, eq3_distance, eq4_lateral, lateral_from_terms, lateral_terms,
-                            measure_boxes)
+from monorarp.state import StateEstimator
+from monorarp.state_geometry import eq3_distance, eq4_lateral, lateral_from_terms, lateral_terms, measure_boxes
 from monorarp.types import Track
 
 FPS = 30.0

@@ -2,7 +2,7 @@
 
 Every tracker sees identical frames and identical detections:
 
-1. each scenario is simulated and rendered once (:func:`harness.run.rendered_frames`), or read
+1. each scenario is simulated and rendered once (:func:`harness.frame_feed.rendered_frames`), or read
    from the frame cache (:mod:`harness.frame_cache`, shared with ``monorarp sweep``) when an
    earlier benchmark or sweep rendered the same instance; its frames (made read-only) and
    ground truths are kept in memory;
@@ -91,7 +91,7 @@ def cache_sequence(scenario: Scenario, detector: Any, n_frames: int, name: str |
                    log: Callable[[str], None] | None = None, cache: FrameCache | None = None) -> CachedSequence:
     """Render ``n_frames`` of ``scenario`` (or read them from ``cache``) and run ``detector`` once on each
     frame (timed)."""
-    from harness.run import rendered_frames
+    from harness.frame_feed import rendered_frames
 
     if hasattr(detector, "reset"):
         detector.reset()

@@ -1,34 +1,9 @@
 """Pure geometry of the dataset exports (no files here): KITTI boxes, calibration, truncation.
 
-Frames are those of :mod:`monorarp.camera` (camera frame: OpenCV, x right, y down,
-z forward; ego frame: x right, y ahead, z up) and of the ground truth's
-``corners_cam`` (:mod:`harness.ground_truth`: rear-left, rear-right, front-right,
-front-left on the ground, then the same four at the roof).
-
-**KITTI's camera frame is the camera's own.** KITTI labels live in the
-(rectified) camera frame that ``P2`` projects, and describe a box that can only
-turn about that frame's ``y`` axis (``rotation_y``). The project's camera is
-pitched down by ``pitch_rad`` about its ``x`` axis, so:
-
-* ``P2 = K [I | 0]`` (the rendering camera is the reference camera; ``P0`` = ``P1``
-  = ``P3`` = ``P2``: one monocular camera, no stereo baseline), ``R0_rect = I``;
-* ``location`` is the exact centre of the vehicle's ground face (its footprint
-  centre on the road) in the pitched camera frame, ``h, w, l`` are its exact
-  dimensions, and ``rotation_y`` is the yaw of its forward axis projected onto the
-  camera's x-z plane (``atan2(-f_z, f_x)``; -pi/2 = driving straight ahead);
-* what KITTI's box model cannot hold is the pitch itself: a vehicle standing on
-  the road is tilted by ``pitch_rad`` about the camera's x axis relative to the
-  upright box KITTI rebuilds from ``(h, w, l, location, rotation_y)``. Each rebuilt
-  corner lies within ``2 sin(pitch / 2) * r`` of the true one, ``r`` its distance
-  from the ground-face centre (about 0.1 m for a 5 m car at 2 deg of pitch; exact at
-  zero pitch). :func:`kitti_box_corners` rebuilds KITTI's box;
-  the true corners stay in ``ground_truth.jsonl``;
-* the pitch and the mounting go into the extrinsics: ``Tr_velo_to_cam`` maps a
-  *levelled* frame at the camera (KITTI's velodyne axes: x forward, y left, z up)
-  into the pitched camera frame (so it holds ``pitch_rad`` exactly), and
-  ``Tr_imu_to_velo`` maps a frame on the ground under the ego vehicle's centre
-  (KITTI's IMU axes) to it (so it holds ``height_m``, ``forward_offset_m`` and
-  ``lateral_offset_m``).
+Frames are those of :mod:`monorarp.camera` (camera frame: OpenCV, x right, y down, z forward; ego
+frame: x right, y ahead, z up) and of the ground truth's ``corners_cam``. KITTI's camera frame is
+the pitched camera's own; the pitch and mounting go into ``Tr_velo_to_cam`` / ``Tr_imu_to_velo``,
+and the rebuilt KITTI box misses only the pitch. In full: docs/formats.md (the pitched camera).
 """
 
 from __future__ import annotations

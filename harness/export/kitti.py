@@ -1,33 +1,10 @@
 """KITTI object and KITTI tracking writers (text formats of KITTI's devkits; maths in
 :mod:`harness.export.geometry`, which also says how the pitched camera is represented).
 
-**KITTI object** (``--format kitti``), one file of each per frame ``NNNNNN`` (the frame index):
-
-* ``image_2/NNNNNN.png`` — the frame (lossless PNG);
-* ``label_2/NNNNNN.txt`` — one line per vehicle with at least one visible pixel, the 15 fields
-  ``type truncated occluded alpha x1 y1 x2 y2 h w l x y z rotation_y``:
-  ``type`` ``Car`` (``Truck`` for the renderer's trucks, longer than 7 m); ``truncated`` the
-  share (0..1) of the vehicle's projected 3-D box outside the image; ``occluded`` 0 (fully
-  visible), 1 (partly occluded) or 2 (largely occluded) from the ground truth's visibility
-  (:func:`harness.export.geometry.occlusion`, thresholds
-  :data:`~harness.export.geometry.OCCLUSION_LEVELS`); ``alpha`` the observation angle;
-  ``x1 y1 x2 y2`` the ground truth's tight box of visible pixels, unchanged (the project's
-  pixel convention, pixel centres at integers: a box over columns 10..19 is 9.5..19.5);
-  ``h w l`` (m), ``x y z`` the ground-face centre in the camera frame (m), ``rotation_y``;
-* ``calib/NNNNNN.txt`` — ``P0``..``P3``, ``R0_rect``, ``Tr_velo_to_cam``, ``Tr_imu_to_velo``
-  (3x4 / 3x3 row-major, KITTI's ``key: values`` lines).
-
-**KITTI tracking** (``--format kitti-tracking``), one sequence ``0000``:
-
-* ``image_02/0000/NNNNNN.png``;
-* ``label_02/0000.txt`` — ``frame track_id`` then the 15 object fields, one line per vehicle
-  and frame; ``track_id`` is the ground truth's vehicle id; ``truncated`` is an integer as
-  KITTI tracking has it: 0 not truncated, 1 partly (< 50 % of the box outside), 2 more
-  (:data:`~harness.export.geometry.TRUNCATION_LEVELS`);
-* ``calib/0000.txt`` — in KITTI tracking's spelling (``P0:``..``P3:``, then ``R_rect``,
-  ``Tr_velo_cam``, ``Tr_imu_velo`` without a colon);
-* ``evaluate_tracking.seqmap.training`` — ``0000 empty 000000 N`` (KITTI's and TrackEval's
-  sequence map; N frames).
+``--format kitti``: ``image_2/``, ``label_2/``, ``calib/`` per frame; ``--format kitti-tracking``:
+one sequence ``0000`` (``image_02/``, ``label_02/``, ``calib/``, a seqmap). Boxes in the
+project's pixel convention, sizes and positions in m. Files and fields: docs/formats.md
+(``monorarp export``).
 """
 
 from __future__ import annotations

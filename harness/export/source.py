@@ -1,6 +1,6 @@
 """Where an export's frames and ground truth come from: a scenario file or a run directory.
 
-* ``SCENARIO.yaml`` — simulated and rendered now (:func:`harness.run.rendered_frames`,
+* ``SCENARIO.yaml`` — simulated and rendered now (:func:`harness.frame_feed.rendered_frames`,
   the frames ``monorarp run`` scores), so the images are the renderer's exact pixels.
 * ``RUN_DIR`` — a directory written by ``monorarp run`` or ``monorarp render``: its
   ``camera.json`` and ``ground_truth.jsonl``, and its frames decoded from ``frames.mp4``
@@ -65,7 +65,7 @@ def open_source(path: str | Path, n_frames: int | None = None) -> ExportSource:
 
 
 def _scenario(path: Path, n_frames: int | None) -> ExportSource:
-    from harness.run import rendered_frames
+    from harness.frame_feed import rendered_frames
     from harness.scenario import ScenarioError, load_scenario
 
     scenario = load_scenario(path)

@@ -2,28 +2,8 @@
 rear-face distance and lateral offset of each labelled object.
 
 Frames are :mod:`monorarp.camera`'s (camera: x right, y down, z forward; ego: x right, y ahead,
-z up, origin at the camera). KITTI labels live in the rectified reference camera frame; ``P2 =
-K [I | t]`` maps it into the left colour camera (the images'), so a label point ``X`` sits at
-``X + t`` in the camera frame, ``t = K^-1 P2[:, 3]`` (about 6 cm sideways on KITTI's rig, 0 in
-``monorarp export`` datasets).
-
-**Mounting.** A ``monorarp export`` calibration holds it (:mod:`harness.export.geometry`):
-``R0_rect = I``, ``Tr_velo_to_cam`` a pure pitch (no translation) from a levelled frame at the
-camera, ``Tr_imu_to_velo`` a pure translation from the ground under the ego's centre (``-z`` = the
-camera height). Any other calibration (KITTI's real rig: its Velodyne is not on the ground) gives
-no camera height: it must come from ``--camera-height``, and the camera is taken as level (horizon
-at ``cy`` of ``P2``) unless ``--horizon-row`` says otherwise.
-
-**Rear-face distance of a label** (``d_long``, m; the ground truth's definition,
-:mod:`harness.ground_truth`): the label's ``location`` is the centre of the box's bottom face,
-``h, w, l`` its size, ``rotation_y`` the yaw of its length axis about the camera's ``y`` axis.
-The vehicle stands on the road, so its length axis is horizontal in the ego frame; a horizontal
-direction ``(a, b, 0)`` (ego) appears in a camera pitched down by ``p`` as ``(a, -b sin p, b cos p)``,
-whose yaw is ``rotation_y = atan2(-b cos p, a)``. Hence the heading in the ego frame is
-``(cos ry, -sin ry / cos p)`` normalised (exact; at ``p = 0`` it is KITTI's devkit box). The
-footprint is the ``l x w`` rectangle about the bottom-face centre (taken to the ego frame) along
-that heading; ``d_long`` = the smallest ego ``y`` of its four corners (the rear face's distance
-for a vehicle ahead), ``d_lat`` = the ego ``x`` of its centre.
+z up, origin at the camera); ``d_long`` / ``d_lat`` (m) as the ground truth defines them. The
+mounting read from a calibration and the label geometry: docs/kitti.md.
 """
 
 from __future__ import annotations

@@ -1,29 +1,9 @@
 """Light, weather and lens effects of a scenario's ``conditions:`` block (image space, seeded).
 
-Scene-side (vertex colours, :func:`scene_lighting`): the time of day sets the
-directional light, ambient level, colour tint and sky colour; at dusk and night
-the tail-light faces of every vehicle are emissive. Everything else works on the
-colour pass, its depth buffer and its id mask (:func:`apply`), in linear light
-(sRGB ~ linear^(1/2.2), as :mod:`harness.render.shading`), in this order:
-
-1. ego low-beam headlights (dusk, night): ``E = I0 * beam(angles) * cos(incidence) / r^2``
-   added to the ambient (``lin *= 1 + E / ambient``), r the lamp-to-surface distance (m);
-   bloom around the emissive tail lights; veiling glare around a low sun in view.
-2. wet road (rain): road pixels darkened by ``1 - 0.45 rain`` plus a Schlick-Fresnel
-   sky reflection ``0.3 rain * sky * (1 - cos i)^5``.
-3. extinction (fog and rain), Koschmieder: ``I = I0 t + A (1 - t)``,
-   ``t = exp(-3.912 d / V)``, d the range along the pixel's ray (m), V the
-   visibility (m); rain adds an extinction of visibility ``RAIN_VISIBILITY_M / rain``.
-   Sky pixels (no depth) become the airlight A.
-4. rain streaks: ``int(rain * STREAKS)`` slanted streaks per frame, seeded by (seed, frame).
-5. lens: motion blur over the exposure (each pixel sampled along its image flow:
-   forward ego motion, ``dp/dt = (p - foe) * v_rel / z``; vehicles move with their
-   relative longitudinal speed, sky is static) and rolling shutter (row r is
-   exposed ``(r / H - 1/2) * readout_s`` from the frame time; same flow field).
-6. after the sensor blur/noise of ``render``: JPEG compression at ``jpeg_quality``.
-
-Ground truth is untouched (boxes and visibility come from the id pass), so a
-vehicle hidden by fog or darkness still counts for recall.
+Scene-side (:func:`scene_lighting`): time of day, sky and emissive tail lights. Image-side
+(:func:`apply`, in linear light, on the colour pass, depth buffer (m) and id mask): headlights,
+bloom, glare, wet road, fog/rain extinction, rain streaks, motion blur, rolling shutter, JPEG.
+Ground truth is untouched. Each effect's model: docs/weather.md.
 """
 
 from __future__ import annotations

@@ -1,49 +1,8 @@
 """Scoring orchestration: per-frame truths + pipeline FrameResults -> records and ``metrics.json``.
 
-Rules (all configurable in :class:`EvalConfig`):
-
-* **Matching**: each frame, tracks are matched to ground-truth objects by
-  Hungarian assignment on IoU, pairs below ``min_iou`` (0.5) never match.
-* **Counted objects**: a GT object counts when its visibility is at least
-  ``min_visibility`` (0.3) and its ``d_long`` at most ``max_range_m`` (80 m, the
-  last range bin). Other objects are *ignored*: missing them is no error, and a
-  track or detection matching one (IoU >= ``min_iou``) is dropped from that
-  frame (not a false positive). So is a track or detection that matches no
-  counted object and either covers at least ``ignore_cover`` (0.5) of an
-  ignored object's visible box (a track coasting on the whole of a vehicle
-  that is now mostly hidden) or, when the camera is given, whose bottom edge
-  lies beyond ``max_range_m`` on the ground (or at/above the horizon): the
-  range filter nuScenes applies to predictions. Detection and tracking (MOT)
-  metrics use this rule; ``per_object.csv`` marks such rows ``set_aside``.
-* **State errors** (distance, lateral, velocity) over counted matched
-  object-frames whose track has a state, with ``0 <= d_long < 80`` (the union
-  of the range bins): ``d_long`` vs ``d_y``, ``d_lat`` vs ``d_x``, ``v_long`` vs
-  ``v_y`` (and ``v_lat`` vs ``v_x`` under ``rel_velocity.lateral``).
-* **Distance intervals**: ``distance.interval_coverage`` = share of those object-frames
-  (with a ``d_y_std``) whose ``d_long`` lies in the stated 90 % interval
-  ``d_y +- 1.645 d_y_std``; ``interval_width_median_m`` / ``_mean_m`` its full width
-  (``by_span`` too). ``horizon`` (with a horizon stage): :func:`horizon_metrics`.
-* **TTC warnings**: over counted matched object-frames, warning = TTC < threshold;
-  a track with no TTC (none within the 10 s horizon, or no state) warns nothing.
-  ``frame_warning``: per frame, the scene warns when any estimated TTC is below
-  the threshold, truth when any counted object's is.
-* **Lane (ego) speed**: ``FrameResult.ego_speed`` (m/s, None = no estimate) against
-  the truth's ``ego.speed``: errors over the frames with an estimate,
-  ``valid_fraction`` = those frames / all frames (null when the run has no
-  ego-speed stage).
-* **Risk** against what the simulation really did next. Event of frame j: the
-  ego's or any visible vehicle's ``crashed`` flag (highway-env keeps it set after a
-  crash), or any visible vehicle with ground-truth TTC under ``near_miss_ttc_s``
-  (1 s). Label of frame k: an event in frames k .. k + ``risk_horizon_s`` x fps
-  (10 s). A frame whose window runs past the last frame counts only when it is
-  already positive; otherwise it is excluded (``risk.excluded_past_end``).
-  ``risk.auroc`` (Mann-Whitney, ties one half; null when a class is absent) and
-  ``risk.brier`` of the risk as a probability: the Monte Carlo estimator's
-  probability as is; the paper's 1/TTC mapped by ``p = min(1, risk x
-  near_miss_ttc_s)`` (TTC <= 1 s -> 1, TTC 2 s -> 0.5, no collision course -> 0).
-  ``risk.baseline_ttc``: the same for the 1/TTC estimator run on the same
-  states, when the run's risk estimator is another one.
-* Statistics over nothing (no pairs, no warnings) are ``null`` in JSON.
+Tracks are matched to counted ground-truth objects per frame (Hungarian on IoU), then distance,
+lateral, velocity (m, m/s), TTC-warning, lane-speed, tracking, detection and risk metrics are
+computed, all configurable in :class:`EvalConfig`. The rules in full: docs/metrics.md.
 """
 
 from __future__ import annotations

@@ -1,34 +1,10 @@
 """HOTA (Luiten et al., IJCV 2021: "HOTA: A Higher Order Metric for Evaluating Multi-Object
 Tracking"), computed as TrackEval computes it, in numpy.
 
-Input per frame: the ids of the ground-truth objects and of the tracks that take part,
-and their (n_gt, n_tracks) similarity matrix (IoU for boxes). For each localisation
-threshold ``alpha`` in 0.05, 0.10, ..., 0.95 (:data:`ALPHAS`, TrackEval's ``array_labels``):
-
-1. **Matching.** Each frame is matched once (Hungarian) maximising
-   ``A(g, t) * S(g, t)``, where ``S`` is the frame's similarity and ``A(g, t)`` the global
-   alignment of the two ids over the whole sequence: with, per frame,
-   ``s(g, t) = S / (sum_t' S(g, t') + sum_g' S(g', t) - S)`` (the pair's share of its
-   potential matches), ``P(g, t) = sum over frames of s(g, t)`` and
-   ``A = P / (n_g + n_t - P)``, ``n_g`` / ``n_t`` the frames the ids occur in.
-   A matched pair is a true positive at ``alpha`` when ``S >= alpha``.
-2. **Detection**: ``DetA = TP / (TP + FN + FP)``, ``DetRe = TP / (TP + FN)``,
-   ``DetPr = TP / (TP + FP)``.
-3. **Association**: for each true positive ``c`` between ``g`` and ``t``,
-   ``A(c) = TPA / (TPA + FNA + FPA) = m(g, t) / (n_g + n_t - m(g, t))`` with ``m`` the
-   pair's true-positive count; ``AssA`` = mean of ``A(c)`` over the TPs (``AssRe``,
-   ``AssPr`` with ``m / n_g`` and ``m / n_t``).
-4. ``HOTA = sqrt(DetA * AssA)``; ``LocA`` = mean similarity of the TPs.
-
-The reported ``hota``, ``deta``, ``assa``, ``loca`` are the means over the 19 thresholds;
-``hota0`` / ``loca0`` are the values at the lowest threshold. Sequences combine as in
-TrackEval (:func:`combine`): TP/FN/FP summed per threshold, ``AssA``/``AssRe``/``AssPr``/
-``LocA`` averaged weighted by TP. Degenerate cases follow TrackEval too (no tracks: every
-object a miss and ``LocA`` 1; ratios over nothing are 0, not undefined).
-
-Checked against TrackEval 1.3.0 itself (run in a separate environment) on exported MOT
-sequences and synthetic cases: ``tests/test_hota.py`` with the reference numbers in
-``tests/data/hota_trackeval.json`` (made by ``scripts/hota_reference.py``).
+Input per frame: the ids of the ground-truth objects and of the tracks that take part, and their
+(n_gt, n_tracks) similarity matrix (IoU for boxes); outputs (fractions 0..1) are means over the
+localisation thresholds :data:`ALPHAS`, and sequences combine as in TrackEval (:func:`combine`).
+Matching, definitions and the check against TrackEval 1.3.0: docs/metrics.md (HOTA).
 """
 
 from __future__ import annotations

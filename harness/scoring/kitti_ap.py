@@ -1,33 +1,9 @@
 """KITTI-style 2-D average precision (pure maths, no files).
 
-Per image and difficulty (KITTI object devkit's ``clean_data`` rules):
-
-* a ground-truth box is **valid** when its type is the class (``Car``) and it passes the
-  difficulty filter (:data:`harness.kitti_eval.geometry.DIFFICULTIES`: box height ``y2 - y1`` above
-  the minimum, occlusion and truncation at most the maxima); **ignored** when its type is the
-  neighbouring class (``Van`` for ``Car``) or it is of the class but fails the filter; otherwise
-  (other types) it plays no part. ``DontCare`` boxes are regions;
-* a detection of the class is **ignored** when its box is lower than the difficulty's minimum height.
-
-Matching, detections of all images in descending score: each takes the unassigned valid
-ground-truth box of its image with the highest IoU above the threshold (strictly, as the devkit);
-failing that an unassigned ignored one (the detection is then ignored). An unmatched detection
-is ignored when it is itself ignored (too small) or when more than the threshold of its own area
-lies in one ``DontCare`` region (the devkit's intersection over detection area); otherwise it is a
-false positive. A valid box taken by an ignored (too small) detection is excused: it leaves the
-recall's denominator (the devkit neither counts it found nor missed).
-
-Precision/recall are evaluated at each distinct score (ties enter together). Interpolated
-precision ``p(r) = max{precision at recall >= r}`` (0 when that recall is never reached);
-``AP_R40`` = mean of ``p`` at ``r = 1/40, 2/40, ..., 1`` (KITTI's since 2019), ``AP_R11`` = at
-``r = 0, 0.1, ..., 1`` (the original). Values are fractions 0..1 (the devkit prints percent).
-The official devkit places its 41 samples by picking score thresholds among the true positives,
-at the recall *nearest* each sample (this definition takes the best precision at recall *at or
-beyond* it): where the curve ends short of recall 1 the devkit credits one more sample, up to
-1/40 higher; for exactly 40 cars all found it gives 97.5 %, not 100 %. Both are reported:
-``ap_r40``/``ap_r11`` (the definition) and ``ap_r40_devkit``/``ap_r11_devkit`` (the devkit's
-sampling on this module's matching, which equals the devkit's counts when no two detections
-compete for one box).
+Per image and difficulty, KITTI object devkit's ``clean_data`` rules (valid, ignored and
+``DontCare`` boxes), greedy matching by descending score, interpolated precision sampled at 40
+(``AP_R40``) and 11 (``AP_R11``) recall points, both as defined and as the devkit samples them.
+Values are fractions 0..1. The rules in full: docs/kitti.md (KITTI AP).
 """
 
 from __future__ import annotations

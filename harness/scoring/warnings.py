@@ -1,31 +1,8 @@
 """Forward-collision warnings scored as episodes against the truth (``warning.*`` of ``metrics.json``).
 
-Definitions (the pipeline decides, :mod:`monorarp.warning`; the harness only scores):
-
-* **Episode**: consecutive frames whose ``FrameResult.warning`` is active with the
-  same episode index; onset = its first frame's time, end = its last frame's time (s).
-* **Conflict frame** (truth): some vehicle in the frame (visible, any visibility)
-  has a ground-truth TTC (footprint against footprint at the true relative
-  velocity, so the vehicle is in the ego's path) below the warning threshold
-  ``threshold_s`` (the warning stage's own), or the ego has crashed.
-* **False alarm**: an episode during which (onset to end, inclusive) no frame is a
-  conflict frame.
-* **First-warning TTC** (``first_warning_ttc_s``): the true TTC, at the onset of the
-  run's first episode, of the ground-truth vehicle its track is matched to (IoU >=
-  ``min_iou``); unmatched, the lowest true TTC in the frame. Null when no warning
-  came. When that vehicle was on no collision course at the onset, the warning came
-  *early*: if the same episode is still on when a collision course begins (the warned
-  track's vehicle, or unmatched any vehicle, gets a true TTC), the first-warning TTC
-  is the true TTC at that first frame (``first_warning_early`` true) -- the driver had
-  the alert at that TTC, which is what the protocols' "warning at TTC >= X" asks. An
-  alert that stays on all the time would pass a conflict this way, but the same alert
-  raises false alarms in the nominal runs, which the scorecard counts. Null when the
-  episode ended before any collision course (then it is a false alarm unless a
-  conflict frame fell in it).
-* **Lead time** (``lead_time_s``): contact time (first frame with the ego's crash
-  flag) minus the first onset; null without a warning or a contact.
-* **Exposure**: the run's duration (frames x frame interval, s) and the ego's
-  distance driven (km), the denominators of false alarms per hour / per km.
+The pipeline decides (:mod:`monorarp.warning`); the harness only scores: episodes, conflict
+frames, false alarms, first-warning TTC (s), lead time (s) and exposure (s, km). Their
+definitions: docs/metrics.md (warning episodes).
 """
 
 from __future__ import annotations

@@ -39,7 +39,7 @@ class RunOutcome:
 
 
 def owned_names() -> tuple[str, ...]:
-    from harness.run import OUTPUT_NAMES
+    from harness.run_outputs import OUTPUT_NAMES
 
     return (*OUTPUT_NAMES, RUN_JSON, ERROR_JSON)
 

@@ -1,31 +1,9 @@
 """Sub-pixel refinement of a vehicle box's bottom edge from the image (classical, no training).
 
-The bottom edge drives equation 3's distance (1 px there is ``d^2 / (h_c f)`` m), and the
-detector's regressed edge is only good to about a pixel. Under a vehicle the image changes
-abruptly from the vehicle's lowest parts (tyres, or the bumper close up) to the road, so the
-edge can be read off the image itself:
-
-1. In a band of rows ``y2 +- search`` around the detected bottom ``y2`` (``search`` grows with the
-   box's height) and the box's columns, take the colour difference between vertically adjacent
-   pixels, ``g(r, c) = |I(r+1, c) - I(r, c)|`` (Euclidean over B, G, R; an edge between rows
-   ``r`` and ``r+1`` sits at ``y = r + 0.5``), and a threshold ``tau`` from the band's own noise
-   level (``noise_k`` x the median of ``g``, at least ``noise_floor``).
-2. Per column, its lowest *bottom transition*: ``g > tau`` from a pixel that differs from the
-   column's last band row (what lies under the vehicle: road, or an occluder) by more than
-   ``tau``, with ``above_min`` of the ``above`` pixels over it differing too, to a pixel that does
-   not. A lane-marking speck (road just above it) is not one; a 1-px tyre under a body whose
-   anti-aliased lower edge happens to match the road is.
-3. The vehicle's lowest row is the ``min_cols``-th lowest of those (a single column does not
-   decide); the columns whose transition lies there are the ones that reach the bottom (tyres).
-4. In each such column the edge is located to a fraction of a pixel by the centroid of the
-   colour differences across it (``+-window`` rows), each projected on the transition's colour
-   direction, keeping the contiguous run of positive ones: an anti-aliased or blurred edge
-   spreads over 2-3 differences that all point the same way, and their centroid is the edge's
-   position for a box filter. The box's bottom is the median over those columns.
-5. The refined edge replaces the detector's only if it lies within ``search`` of it; otherwise
-   (no bottom transition, a band that does not fit in the image) the detector's edge stays.
-
-Coordinates: continuous source pixels (:mod:`monorarp.types`, pixel centres at integers).
+The bottom edge drives equation 3's distance (1 px there is ``d^2 / (h_c f)`` m); under a vehicle
+the image changes abruptly to the road, so the edge (``y2``, continuous source pixels) is read off
+the image to a fraction of a pixel and replaces the detector's only within ``search`` of it.
+The method step by step: docs/bottom_edge.md.
 """
 
 from __future__ import annotations

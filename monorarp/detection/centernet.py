@@ -1,41 +1,10 @@
 """The project's own vehicle detector: a small CenterNet-style net run with onnxruntime.
 
-Model layout (``monorarp/models/centernet_vehicle.onnx``, produced by ``training/``):
-
-* input ``image`` ``(1, 3, H, W)`` float, RGB in [0, 1]; the camera image is
-  **letterboxed** into W x H (aspect ratio kept, grey 114 padding centred), so any
-  source resolution or aspect ratio works (640x360 -> 320x180 + 6 px bands);
-* output ``heatmap`` ``(1, 1, H/s, W/s)``: vehicle-centre probability (sigmoid applied);
-* output ``ltrb`` ``(1, 4, H/s, W/s)``: distances (input px) from the cell's centre
-  ``(s*j + (s-1)/2, s*i + (s-1)/2)`` to the box's left, top, right and bottom edges.
-  Regressing the four edges replaces CenterNet's size + offset heads (the offset is
-  implied), so the bottom edge -- what the distance estimator reads -- is predicted directly.
-
-Decoding (numpy/cv2, no NMS in the graph): peaks = cells equal to their 3x3 max
-(``cv2.dilate``) above ``score_threshold``; each peak's box is the heatmap-weighted
-mean of the boxes predicted by its 3x3 neighbours that agree with it (IoU > 0.6);
-boxes are mapped back to the source image's continuous pixel coordinates.
-
-Foveated second pass (``foveate``; on by default when the detector is given the
-``camera``, as ``monorarp run`` and :meth:`Pipeline.from_config` do): the net runs a
-second time on a crop around the camera's principal column and horizon row at
-``fovea_zoom`` (2) times the full view's scale -- for 640x360, the 320x192 source
-pixels around the horizon at their own resolution -- where far, small vehicles are
-(:mod:`monorarp.detection.fovea`). Inside the crop the finer view has the last word:
-a vehicle both passes see gets the fovea's box (small boxes) or the mean of the two
-(``fovea_box``); a full-view box the fovea does not confirm (no fovea peak >=
-``fovea_support``) is dropped; boxes cut by the crop's border or taller than
-``fovea_max_height`` of it are left to the full view.
-On ``highway_cruise`` (640x360, the committed model) it takes the 40-80 m median
-distance error from 8.6 % to 2.9 % and recall from 0.95 to 1.0 (MOTA 0.95 -> 1.0), for
-one more net run (~3.8 ms on one thread).
-Without a camera the detector runs the full view only, unless
-``foveate=True`` (then the crop is centred on the image centre).
-
-Sub-pixel bottom edge (``refine_bottom``, on by default): after the merge, each box's bottom
-edge is moved to the vehicle/road transition read from the source image to a fraction of a
-pixel (:mod:`monorarp.detection.bottom_edge`). On ``highway_cruise`` it takes the median distance
-error from 1.96 % to 0.10 % over 5-40 m and from 2.90 % to 1.33 % over 40-80 m.
+The camera image (BGR) is letterboxed into the net's input; a heatmap of vehicle centres and
+each cell's distances (px) to the box's four edges are decoded into boxes in the source image's
+continuous pixel coordinates, with a foveated second pass near the horizon (``foveate``) and a
+sub-pixel bottom edge (``refine_bottom``). Model layout, decoding and figures: docs/pipeline.md
+(the detector).
 """
 
 from __future__ import annotations

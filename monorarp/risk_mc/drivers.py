@@ -1,29 +1,8 @@
 """Sampled driver parameters (IDM + MOBIL) and initial-state noise, truncated to physical ranges.
 
-Every parameter is a normal distribution truncated to ``[lo, hi]`` (sampled
-exactly by inverse CDF, so no probability mass piles up at the bounds).
-Default ranges (per driver, per rollout):
-
-=====================  ======  =====  ===========  =========================================
-parameter              mean    std    range        source / reason
-=====================  ======  =====  ===========  =========================================
-time headway T (s)     1.5     0.4    [0.8, 2.5]   Treiber & Kesting: 1.0-1.5 s typical
-jam gap s0 (m)         2.0     0.7    [1.0, 4.0]   Treiber & Kesting: 2 m
-max accel a (m/s^2)    1.5     0.5    [0.5, 3.0]   cars 1-2 m/s^2, sporty up to 3
-comfort decel b        2.0     0.6    [1.0, 4.0]   comfortable 1.5-2 m/s^2
-politeness p           0.3     0.2    [0.0, 1.0]   Kesting 2007: 0 (selfish) .. 1 (altruist)
-MOBIL threshold        0.2     0.1    [0.05, 0.6]  Kesting: 0.1; highway-env: 0.2 m/s^2
-b_safe (m/s^2)         3.0     1.0    [1.5, 5.0]   Kesting: 4; highway-env: 2
-desired speed v0       v + sigma*z, z in [-2, 2], sigma = max(1 m/s, 10 % of v); floored at 0.5 m/s
-=====================  ======  =====  ===========  =========================================
-
-Initial-state noise (standard normal deviates truncated to +-3, scaled by the
-estimator's noise settings) models the state estimator's error.
-
-Draws are organised per *driver* (one ``(K, S)`` block per tracked vehicle): the
-estimator keys a driver's block on its track id so that a vehicle keeps its
-sampled personalities from frame to frame (common random numbers, which keeps
-the risk from jittering with the sampling).
+Every parameter is a normal distribution truncated to ``[lo, hi]`` (SI units), drawn per driver
+(one ``(K, S)`` block per tracked vehicle, keyed on its track id: common random numbers).
+The default ranges and their sources: docs/monte_carlo_risk.md.
 """
 
 from __future__ import annotations

@@ -1,61 +1,10 @@
 """Monte Carlo risk estimator (paper section VI-B): IDM/MOBIL rollouts of the estimated scene.
 
-Registered as ``("risk", "monte_carlo")``. Per frame: the estimated states
-become a road scene (:mod:`monorarp.risk_mc.scene`); ``n_rollouts`` futures
-are simulated for ``horizon_s`` with sampled drivers and noisy initial states
-(:mod:`monorarp.risk_mc.drivers`, :mod:`monorarp.risk_mc.rollout`); the risk
-comes from the ego's conflicts in those futures.
-
-Scores (``score=``):
-
-* ``"probability"`` (default): the fraction of rollouts in which some vehicle
-  collides with the ego or comes within ``near_miss_ttc_s`` of contact
-  (constant-velocity rectangle TTC). A probability in [0, 1] of exactly the
-  event the harness scores ("a collision or a near miss within the horizon"),
-  so it can be judged by Brier score and AUROC, and it is comparable across
-  scenes and settings -- hence the default.
-* ``"inverse_ttc"``: the paper's variant, the mean over rollouts of
-  ``max_vehicles 1 / t_collision`` (1/s; a rollout without a collision scores
-  0; a collision at t = 0 counts as ``t = dt``).
-
-``RiskEstimate.ttc[id]``: the median over rollouts of that vehicle's time to
-first conflict (the predicted contact time at the first step where a conflict
-is seen; for unaccelerated motion it equals the constant-velocity TTC); rollouts
-without a conflict count as +inf, so it is ``None`` unless at least half of the
-rollouts conflict with that vehicle. The rollouts hold at most
-``rollout.MAX_VEHICLES - 1`` (60) tracked vehicles: with more, the nearest are
-simulated and the others get ``None``.
-
-Ego model (``ego_model=``): ``"idm"`` (default) simulates the ego as an
-IDM/MOBIL driver like the others (it brakes for a slower lead, may change
-lane). ``"constant_speed"`` makes the ego hold its speed and lane in every
-rollout (no acceleration, no lane change, no ego-speed noise; ``ego_lane_changes``
-is then moot) while the other vehicles still react to it: use it for a scenario
-whose ego is known to drive at constant speed, e.g. forward-collision-warning
-test protocols where the driver does not react -- there ``"idm"`` would brake
-and under-predict exactly the collisions being scored.
-
-Absolute speeds = ego speed + relative speeds. The ego speed is, in order: the
-``ego_speed`` argument of :meth:`assess`, the last value given to
-:meth:`set_ego_speed` (e.g. the ego-speed estimator's output), the configured
-``ego_speed_mps`` (e.g. GPS / a fixed assumption), else ``FALLBACK_EGO_SPEED_MPS``
-(25 m/s, a typical highway speed); ``ego_speed_source`` says which was used.
-
-Backends (``backend=``): ``"numba"`` runs the rollouts in a compiled per-sample
-loop (:mod:`monorarp.risk_mc.rollout_numba`, always float64, ~2-3x faster than
-numpy at 500 rollouts); ``"numpy"`` is the vectorised pure-numpy path
-(:mod:`monorarp.risk_mc.rollout`, in ``dtype``); ``"auto"`` (default) takes numba
-when it can be imported, else numpy. Both simulate the same sampled futures and
-agree up to floating-point rounding. With numba, the first estimator of a process
-imports numba and warms the kernel up in its constructor (``warm_up=True``), so the
-first frame is not slow: measured ~3-5 s the first time ever (compilation, then
-cached in ``__pycache__``), ~0.5 s per process afterwards (numba import + cache
-load), ~0.3 ms for later estimators.
-
-Determinism and common random numbers: each driver's parameters and noise are
-drawn from a stream seeded by ``(seed, track id)``, so a vehicle keeps its sampled
-"personalities" from frame to frame; the result is a pure function of
-(states, ego speed, configuration) -- ``t`` does not enter it.
+Registered as ``("risk", "monte_carlo")``. Per frame: the estimated states (ego frame, m, m/s)
+become a road scene; ``n_rollouts`` futures are simulated for ``horizon_s`` (s) with sampled
+drivers and noisy initial states; the risk (a probability, or the paper's mean 1/TTC in 1/s)
+comes from the ego's conflicts in those futures. Scores, per-vehicle TTC, ego model, ego-speed
+sources, backends and determinism: docs/monte_carlo_risk.md.
 """
 
 from __future__ import annotations

@@ -1,50 +1,9 @@
 """Batched IDM/MOBIL traffic rollouts on a straight multi-lane road, and their conflicts with the ego.
 
-Road frame of a rollout: ``x`` along the road (m, ego's initial centre at 0),
-``y`` across it (m, + right, ego's lane centre at 0), lane ``l`` centred at
-``y = l * lane_width``; vehicles drive in +x. State arrays are ``(S, N)``:
-S rollouts (samples) x N vehicles, vehicle 0 is the ego (internally
-vehicle-major ``(N, S)``, which keeps each vehicle's samples contiguous). Everything
-is vectorised across samples and vehicles; the only Python loop is over time
-steps. At most ``MAX_VEHICLES`` (61) vehicles, ego included.
-
-Per step (``dt``):
-
-1. every ``mobil_interval_s``: *relink* -- lane changes that reached their
-   target lane end, one stable sort of the vehicles by ``x`` per sample, lane
-   membership as bitmasks over that order (:class:`_Order`), hence the
-   leader/follower of every vehicle in its own lane and both side lanes -- and
-   MOBIL decisions for vehicles that are not changing lane, are out of their
-   cooldown and drive at least ``min_lane_change_speed_mps``; the lanes of
-   vehicles that start a change are added to the bitmasks (no re-sort: ``x`` is
-   unchanged). Leaders are fixed between relinks. Each rollout is independent
-   of the others (results do not depend on how samples are chunked);
-2. IDM acceleration behind the leader in the current lane; a vehicle changing
-   lane also follows the leader in its target lane and takes the smaller of the
-   two (as highway-env's ``IDMVehicle.act``); clipped to
-   ``[-decel_limit, accel_limit]`` (IDM alone can demand unbounded braking);
-3. integration: ``ballistic`` (v_{k+1} = max(v_k + a dt, 0), x advanced by the
-   mean speed, exact stop inside the step; Treiber & Kesting's scheme) or
-   ``euler`` (x += v dt, then v += a dt, no clamp: highway-env's
-   ``Vehicle.step`` on a straight lane, used for the parity test);
-4. lateral: a lane change moves the vehicle towards its target lane centre at
-   ``lane_width / lane_change_duration_s``; a vehicle off its lane centre drifts
-   back at the same rate. While changing it occupies both lanes (both lanes'
-   followers see it). Membership is updated at relink steps only.
-
-The ego follows ``RolloutConfig.ego_model``: ``"idm"`` (default) drives it like
-every other vehicle (IDM, and MOBIL where ``Scene.mobil[0]``); with
-``"constant_speed"`` it holds its initial speed, lateral position and lane for
-the whole horizon (acceleration 0, no lane change, no lateral motion -- a
-driver who does not react), while the others still react to it.
-
-Conflicts with the ego are checked at every step (``t_k = k dt``, k = 0..K):
-the constant-velocity time to contact of the two axis-aligned rectangles from
-the current positions and velocities (closed form, as :mod:`monorarp.ttc`). A
-*conflict* is a contact within ``near_miss_ttc_s`` (a collision -- overlapping
-rectangles -- is contact time 0). Per (rollout, vehicle) the result keeps the
-first conflict's predicted contact time ``t_k + ttc_k`` and the first
-collision time.
+Road frame of a rollout: ``x`` along the road (m, ego's initial centre at 0), ``y`` across it
+(m, + right, ego's lane centre at 0); state arrays ``(S, N)``: S rollouts x N vehicles, vehicle 0
+the ego, at most ``MAX_VEHICLES`` (61). The steps (relink, IDM, integration, lateral motion), the
+ego model and the conflict test: docs/monte_carlo_risk.md.
 """
 
 from __future__ import annotations

@@ -1,29 +1,9 @@
 """Numba backend of :func:`monorarp.risk_mc.rollout.simulate`: one compiled loop per sample.
 
-Same model, same inputs and outputs as the numpy rollout (see the docstring of
-:mod:`monorarp.risk_mc.rollout`); every random draw happens in numpy before
-the kernel, so both backends simulate the same futures. The kernel loops over
-samples, time steps and vehicles with scalar arithmetic in the numpy path's
-operation order (``fastmath=False``, IEEE division by zero), so results agree
-with the numpy path in float64 up to floating-point rounding. It always computes
-in float64 (``RolloutConfig.dtype`` only affects the numpy path).
-
-Per sample and relink step the vehicles are insertion-sorted along the road by
-``(x, index)`` (what the numpy path's stable argsort gives; the previous order is
-the starting point, so this is ~O(N)), and leaders / followers in every lane come
-from one walk down / up that order, remembering the last occupant seen in each lane
-(a vehicle occupies its current lane and, while changing, its target lane).
-Two shortcuts skip work without changing any result: the second IDM evaluation
-only when the target lane's leader differs from the current one, and the
-rectangle contact test only for vehicles that could touch the ego within the
-near-miss window along both axes (``|gap| > |relative speed| * window``, with a
-relative margin of 1e-9 far above rounding, so no contact is skipped).
-
-Compilation: ``@njit(cache=True)`` caches the machine code in ``__pycache__`` next to
-this file (or numba's user cache dir when that is read-only). The first call in a
-process compiles it (measured ~3 s) or loads the cache (~0.2 s); :func:`warm_up`
-does that on purpose so the first frame is not slow. Importing this module does not
-need numba: :data:`NUMBA_AVAILABLE` says whether the backend can run.
+Same model, inputs and outputs as the numpy rollout, always in float64; agrees with it up to
+floating-point rounding. Importing this module does not need numba: :data:`NUMBA_AVAILABLE`
+says whether the backend can run. Sorting, shortcuts and compilation cache:
+docs/monte_carlo_risk.md.
 """
 
 from __future__ import annotations

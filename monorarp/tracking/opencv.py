@@ -1,32 +1,9 @@
 """OpenCV single-object trackers (KCF, CSRT, MOSSE, MedianFlow) run as one multi-object tracker.
 
-As in the paper (section V-B), each OpenCV tracker follows its object in the
-image by itself and needs the detector only to be initialised, which happens
-for every new object. Each frame:
-
-1. every existing tracker updates on the image; one that reports failure
-   (``ok == False``) or whose box has drifted out of the image (less than
-   ``min_inside`` of its area inside) is dropped;
-2. detections are matched to the trackers' boxes (Hungarian on IoU,
-   :func:`monorarp.tracking.association.associate_iou`, gate ``min_iou``); a
-   detection that overlaps no tracker (and has ``score >= min_score``) starts a
-   new tracker, initialised on this image with the detection's box;
-3. optional, off by default (the paper has no such step): with
-   ``reinit_every = k`` a tracker whose last initialisation is ``k`` or more
-   frames old and that matched a detection is re-initialised from it; with
-   ``max_unmatched = k`` a tracker that matched no detection for more than
-   ``k`` frames is dropped.
-
-Output: every live tracker with its OpenCV box (a new one with its detection's
-box), ``coasting=True`` when no detection matched it this frame. Ids count up
-from 0 and are never reused until :meth:`OpenCVMultiTracker.reset`.
-
-Box conventions: ours are continuous ``(x1, y1, x2, y2)`` with pixel centres
-at integers (:mod:`monorarp.types`); OpenCV's ``(x, y, w, h)`` rectangle covers
-pixel columns ``x .. x + w - 1``, i.e. ``x1 = x - 0.5`` and ``x2 = x + w - 0.5``.
-KCF and CSRT (``cv2.Tracker*``) take integer rectangles, so a box is rounded to
-the pixel grid before initialisation; the legacy MOSSE and MedianFlow
-(``cv2.legacy.Tracker*``) take and return float rectangles, converted exactly.
+As in the paper (section V-B), each OpenCV tracker follows its object in the image by itself and
+needs the detector only to be initialised, for every new object; boxes are continuous
+``(x1, y1, x2, y2)`` pixels, converted from and to OpenCV's ``(x, y, w, h)``. Each frame's steps
+and the box conventions: docs/tracking.md.
 """
 
 from __future__ import annotations

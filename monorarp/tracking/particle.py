@@ -1,68 +1,9 @@
 """The paper's particle tracker (section IV-B) with its tracker control.
 
-Per track, ``N`` particles over the box state ``(cx, cy, w, h)`` (pixels).
-All tracks' particles live in one ``(T, N, 4)`` array and every step is
-vectorised over tracks and particles at once:
-
-* **predict** -- each particle moves by the track's box velocity (px/s) times the
-  frame interval (from frame timestamps) plus Gaussian noise whose scale is
-  relative to the box size. The velocity is the least-squares slope of the
-  track's last ``vel_window`` matched detections (cx, cy, w, h) against their
-  frame times: a smooth motion model that a track can coast on for many frames.
-  (The difference of consecutive posterior means, used before, carried the
-  detector's box jitter and the particles' Monte Carlo noise into the velocity:
-  on ``dense_traffic`` a coasting box had a median IoU of 0.27 with its vehicle
-  after 3 frames, against 0.56 with the fit.)
-* **associate** -- detections are matched to the predicted boxes globally
-  (Hungarian on ``1 - IoU`` with a gate, :mod:`monorarp.tracking.association`),
-  active tracks first, then lost tracks (below) to the detections left over;
-* **update** -- importance weights from the Gaussian likelihood of the matched
-  detection (std relative to the detection's size), posterior mean = weighted
-  mean of the particles;
-* **resample** -- systematic resampling into a *new* array (the original code
-  resampled in place from the array it was overwriting).
-
-Tracker control: unmatched detections start tentative tracks; a track is
-confirmed after ``min_hits`` matched frames (in the first ``min_hits`` frames
-of a sequence tentative tracks are output too, so vehicles present from the
-start are not lost); a tentative track is deleted at its first miss. A
-confirmed track that misses detections coasts on its prediction (output with
-``coasting=True``) for up to ``max_coast`` frames; after that it is *lost*:
-no longer output, but kept, still predicted, for up to ``max_lost`` missed
-frames in all, so that a vehicle the detector loses for longer (in dense
-traffic: a far car half hidden behind a nearer one) gets its old id back when
-it is detected again (re-identification on the predicted box), instead of a
-new id. Ids count up from 0 and are never reused until
-:meth:`ParticleTracker.reset`.
-
-A coasting track is not output (it is kept, and coasts on) when its vehicle
-cannot be there to be seen:
-
-* it is leaving the view: its last detection touched the left or right image
-  border while it moved outwards (``edge_px``; needs the image, for its width);
-* its predicted box lies behind a vehicle detected this frame: covered by at
-  least ``occluded_cover`` of its area by a *nearer* detection (bottom edge
-  lower in the image), so it is hidden, not visible;
-* its predicted box lies on a vehicle detected this frame that is *not
-  nearer* (``duplicate_cover``): were a vehicle there, it would hide the one
-  behind it and be detected itself, so the track is more likely a second box
-  on that vehicle (a truck's lower half, a car's rear window) than a car.
-
-And a detection that overlaps (IoU >= ``spawn_iou``) a detection matched to a
-track this frame starts no new track: it is a second box on the same vehicle
-(a detector without NMS, as CenterNet's peak decoding, emits such boxes), which
-would otherwise become a duplicate track and later take the vehicle's
-detections, and its id, from the real one.
-
-Output box: ``box_output="detection"`` (default) reports the matched
-detection's box for supported tracks -- the paper: "the bounding boxes from the
-particle tracker are produced by the object detection network" -- and the
-particle mean while coasting; ``"mean"`` always reports the weighted particle
-mean. The particle mean drives prediction and association in both modes.
-"detection" is the default because the state estimator filters downstream: on a
-synthetic approach (40 m -> 15 m, 30 fps) it gave 0.01 / 0.51 / 0.99 % median
-distance error at 0 / 0.5 / 1 px box noise against 0.28 / 0.60 / 1.40 % with
-"mean" (100 particles add Monte Carlo noise and filter twice).
+Per track, ``N`` particles over the box state ``(cx, cy, w, h)`` (pixels), all tracks in one
+``(T, N, 4)`` array: predict (box velocity in px/s x frame interval from timestamps), associate
+(Hungarian on ``1 - IoU``), update, resample. Tracker control (confirmation, coasting, lost
+tracks, re-identification), suppressed outputs and the output box: docs/tracking.md.
 """
 
 from __future__ import annotations

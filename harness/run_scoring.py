@@ -1,0 +1,67 @@
+"""Scoring of one run: its results against the truth -> metrics, per-object records and per-frame rows.
+
+Besides :func:`harness.scoring.evaluate.evaluate`, a run is scored against the paper's 1/TTC
+risk on the same states (when its risk estimator is another one) and says where its risk
+stage got the ego speed from (estimator, true speed with ``gps_speed``, or its own setting).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows
+from monorarp.camera import CameraModel
+from monorarp.pipeline import Pipeline, PipelineConfig
+from monorarp.registry import build
+from monorarp.types import FrameResult, RiskEstimate
+
+
+@dataclass
+class RunScore:
+    """The scores of a run: ``metrics`` (nested dict, NaN kept) and ``records`` (per object and frame)."""
+
+    metrics: dict
+    records: list
+    truths: list[dict]
+    results: list[FrameResult]
+    eval_config: EvalConfig
+    baseline: list[RiskEstimate] | None
+
+    def frame_rows(self) -> list[dict]:
+        """The rows of ``per_frame.csv`` (:func:`harness.scoring.evaluate.frame_rows`)."""
+        return frame_rows(self.truths, self.results, self.eval_config, self.baseline)
+
+
+def score_run(truths: list[dict], results: list[FrameResult], cfg: PipelineConfig, pipeline: Pipeline,
+              camera: CameraModel, eval_config: EvalConfig, wall_time_s: float, run_info: dict,
+              gps_speed: bool) -> RunScore:
+    """Score ``results`` against ``truths`` (the same frames, in order); ``wall_time_s``: the pipeline's."""
+    baseline = baseline_ttc_risk(results, camera)
+    metrics, records = evaluate(truths, results, eval_config, wall_time_s=wall_time_s, run_info=run_info,
+                                camera=camera, baseline_risk=baseline,
+                                ego_speed_method=None if cfg.ego_speed is None else cfg.ego_speed.name,
+                                fcw_threshold_s=getattr(pipeline.warning, "ttc_threshold_s", None))
+    metrics["risk"]["ego_speed_sources"] = ego_speed_sources(results, pipeline, gps_speed)
+    return RunScore(metrics, records, truths, results, eval_config, baseline)
+
+
+def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[RiskEstimate] | None:
+    """The paper's 1/TTC risk on the same states, when the run's risk estimator is another one (else None)."""
+    if all(r.risk.kind == "inverse_ttc" for r in results):
+        return None
+    ttc = build("risk", "ttc", camera=camera)
+    return [ttc.assess(r.states, r.t) for r in results]
+
+
+def ego_speed_sources(results: list[FrameResult], pipeline: Pipeline, gps_speed: bool) -> dict[str, int] | None:
+    """Frames whose risk stage got the ego speed from the estimator / the true speed / its own setting.
+
+    None when the risk stage takes no ego speed (the 1/TTC risk works on relative velocities).
+    """
+    from monorarp.pipeline import _takes_ego_speed
+
+    if not _takes_ego_speed(pipeline.risk):
+        return None
+    n_est = sum(r.ego_speed is not None for r in results)
+    rest = len(results) - n_est
+    return {"estimator": n_est, "gps": rest if gps_speed else 0, "risk_default": 0 if gps_speed else rest}
