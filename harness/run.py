@@ -39,7 +39,7 @@ from harness.scoring.records import write_csv
 from harness.scoring.tables import summary_table  # noqa: F401  (re-exported for callers)
 from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
-from monorarp.registry import build, get_factory, instantiate
+from monorarp.registry import build, get_factory, instantiate, uses
 from monorarp.types import Frame, FrameResult, ObjectState, RiskEstimate
 
 if TYPE_CHECKING:
@@ -62,10 +62,9 @@ def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pip
 
     Every component name is resolved before anything is built, so an unknown
     name is reported before a model is loaded. ``camera`` is passed to every
-    factory that takes a ``camera`` argument. Raises
+    factory that declares ``uses_camera``. Raises
     :class:`~monorarp.errors.UserError` for unknown names or unusable model files.
     """
-    import harness.oracle  # noqa: F401  (registers the "oracle" detector)
     from monorarp.detection import load_detector
 
     cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
@@ -104,6 +103,8 @@ class GpsFallbackRisk:
     ``speeds`` maps frame time (s) to the true ego speed (m/s); the harness fills it
     before the frame enters the pipeline.
     """
+
+    uses_ego_speed = True
 
     def __init__(self, inner: Any, speeds: Mapping[float, float]) -> None:
         self.inner, self.speeds = inner, speeds
@@ -163,7 +164,7 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
 
     ``n_frames`` defaults to the scenario's duration x fps. With ``out_dir`` the
     files of the module docstring are written atomically. ``gps_speed``: a risk
-    stage that takes the ego speed gets the true one on frames without an estimate.
+    stage that uses the ego speed gets the true one on frames without an estimate.
     ``cache``: frames and truth come from this :class:`~harness.frame_cache.FrameCache`
     (rendered and stored on a miss); the outputs are identical either way.
     """
@@ -173,9 +174,7 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
     camera = scenario.camera.model()
     pipeline = build_pipeline(cfg, camera)     # bad component names / model files fail before any output
     true_speeds: dict[float, float] = {}
-    from monorarp.pipeline import _takes_ego_speed
-
-    if gps_speed and _takes_ego_speed(pipeline.risk):
+    if gps_speed and uses(pipeline.risk, "ego_speed"):
         pipeline.risk = GpsFallbackRisk(pipeline.risk, true_speeds)
     n = scenario.n_frames if n_frames is None else int(n_frames)
     source = rendered_frames(scenario, n) if cache is None else cache.frames(scenario, n)
@@ -255,11 +254,9 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
 def _ego_speed_sources(results: list[FrameResult], pipeline: Pipeline, gps_speed: bool) -> dict[str, int] | None:
     """Frames whose risk stage got the ego speed from the estimator / the true speed / its own setting.
 
-    None when the risk stage takes no ego speed (the 1/TTC risk works on relative velocities).
+    None when the risk stage uses no ego speed (the 1/TTC risk works on relative velocities).
     """
-    from monorarp.pipeline import _takes_ego_speed
-
-    if not _takes_ego_speed(pipeline.risk):
+    if not uses(pipeline.risk, "ego_speed"):
         return None
     n_est = sum(r.ego_speed is not None for r in results)
     rest = len(results) - n_est

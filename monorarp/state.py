@@ -102,7 +102,6 @@ from dataclasses import replace
 import numpy as np
 
 from monorarp.camera import CameraError, CameraModel
-from monorarp.registry import register
 from monorarp.types import HorizonReading, ObjectState, Track
 
 BORDER_TOL_PX = 4.0   # a box edge this close to the image border (px) is taken as cut by it
@@ -293,7 +292,6 @@ def kf_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, r: np.ndarray,
     return x, P
 
 
-@register("state", "geometric")
 class StateEstimator:
     """Tracks -> ``{track id: ObjectState}`` from box geometry and frame timestamps.
 
@@ -330,6 +328,7 @@ class StateEstimator:
             part of one), not motion, and absorbed by the filter it reads as tens of m/s of closing
             speed that a warning would trust (``inf``: never).
     """
+    uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel | dict, velocity: str = "kalman", motion: str = "ca",
                  process_std: float = 3.0, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,

@@ -9,7 +9,7 @@ import pytest
 
 from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, PipelineConfig, run_sync, run_threaded
-from monorarp.registry import register
+from monorarp import registry
 from monorarp.risk import TTCRiskEstimator
 from monorarp.state import StateEstimator
 from monorarp.tracking import ParticleTracker
@@ -104,12 +104,9 @@ def test_early_close_stops_threads():
     assert threading.active_count() <= before
 
 
-@register("detector", "_test_fake")
-def _fake_factory():
-    return FakeDetector()
-
-
-def test_from_config_builds_through_registry():
+def test_from_config_builds_through_registry(request):
+    registry.add("detector", "_test_fake", FakeDetector)
+    request.addfinalizer(lambda: registry.remove("detector", "_test_fake"))
     cfg = PipelineConfig.model_validate({"detector": {"name": "_test_fake"},
                                          "state": {"name": "geometric", "kwargs": {"velocity": "difference"}}})
     p = Pipeline.from_config(cfg, CAM)
