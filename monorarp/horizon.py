@@ -65,6 +65,7 @@ def row_std_px(seg: np.ndarray, u: float, v: float, inlier_deg: float = 1.5) -> 
 
 class CalibratedHorizon:
     """The calibration's horizon row every frame, with a stated pitch uncertainty (deg)."""
+
     uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel, pitch_std_deg: float = 0.0) -> None:
@@ -79,8 +80,9 @@ class CalibratedHorizon:
 
 class OnlineHorizon:
     """Per-frame horizon row from the lane lines' vanishing point (module docstring)."""
+
     uses_camera = True   # the registry passes the run's camera
-    uses_seed = True   # a sweep passes the run's seed
+    uses_seed = True     # a sweep passes the run's seed
 
     def __init__(self, camera: CameraModel, roi_margin_px: float = 10.0, min_inliers: int = 4,
                  max_offset_deg: float = 3.0, floor_std_px: float = 0.1, fallback_pitch_std_deg: float = 0.5,

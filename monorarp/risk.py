@@ -38,6 +38,7 @@ class TTCRiskEstimator:
     ``camera``: if given, its mounting offsets are used for
     ``camera_forward_offset_m`` / ``camera_lateral_offset_m``.
     """
+
     uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, other_width_m: float = 1.8, other_length_m: float = 4.5, ego_width_m: float = 1.8,

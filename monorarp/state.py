@@ -328,6 +328,7 @@ class StateEstimator:
             part of one), not motion, and absorbed by the filter it reads as tens of m/s of closing
             speed that a warning would trust (``inf``: never).
     """
+
     uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel | dict, velocity: str = "kalman", motion: str = "ca",

@@ -80,6 +80,7 @@ class ForwardCollisionWarning:
     at the cost of more false alarms: 4 -> 6 in 3 min of nominal traffic). ``None``: no
     acceleration term.
     """
+
     uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, ttc_threshold_s: float = DEFAULT_TTC_THRESHOLD_S, min_on_s: float = 0.1,

@@ -152,6 +152,7 @@ class CenterNetDetector:
     the detector's edge stays where no clear edge lies within a few px of it). ``dehaze``: remove haze
     (:func:`monorarp.detection.dehaze.dehaze`, dark channel prior) from each image before both passes.
     """
+
     uses_camera = True   # the registry passes the run's camera
 
     FOVEA_DEFAULTS = {"fovea_zoom": 2.0, "fovea_below": 0.25}

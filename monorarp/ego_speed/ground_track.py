@@ -59,6 +59,7 @@ class GroundTrackEgoSpeed:
     rejected. ``max_gap_s``: after this long without tracked stripe ends the
     estimate becomes None. ``min_observations``: stripe-end observations needed in the window.
     """
+
     uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel, stripe_length_m: float = 3.05, period_m: float = 12.19,

@@ -52,6 +52,7 @@ class LsdPeriodEgoSpeed:
     levels by which paint must outshine the road. ``roi_far_m``: LSD runs on the
     image rows seeing the ground up to this distance.
     """
+
     uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel, stripe_length_m: float = 3.05, period_m: float = 12.19,

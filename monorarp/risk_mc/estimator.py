@@ -125,8 +125,9 @@ class MonteCarloRisk:
     every rollout (a non-reacting driver, as in FCW test protocols); the default
     ``"idm"`` lets it brake and change lane like the other drivers.
     """
+
     uses_camera = True   # the registry passes the run's camera
-    uses_seed = True   # a sweep passes the run's seed
+    uses_seed = True     # a sweep passes the run's seed
     uses_ego_speed = True   # its result depends on the ego speed it is given
 
     def __init__(

@@ -140,7 +140,8 @@ class ParticleTracker:
         box_output: ``"detection"`` or ``"mean"`` (see module docstring).
         seed: RNG seed (results are deterministic for a given seed).
     """
-    uses_seed = True   # a sweep passes the run's seed
+
+    uses_seed = True     # a sweep passes the run's seed
 
     def __init__(self, n_particles: int = 100, pos_noise: float = 0.03, size_noise: float = 0.02,
                  meas_noise: float = 0.05, min_iou: float = 0.2, min_hits: int = 2, max_coast: int = 10,
