@@ -57,6 +57,8 @@ class GpsFallbackRisk:
     before the frame enters the pipeline.
     """
 
+    uses_ego_speed = True
+
     def __init__(self, inner: Any, speeds: Mapping[float, float]) -> None:
         self.inner, self.speeds = inner, speeds
 

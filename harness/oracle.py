@@ -30,7 +30,6 @@ import numpy as np
 
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
-from monorarp.registry import register
 from monorarp.types import Detection
 
 VEHICLE_WIDTH_M = 1.8
@@ -41,9 +40,11 @@ class OracleConfigError(UserError, ValueError):
     """An impossible oracle noise setting."""
 
 
-@register("detector", "oracle")
 class OracleDetector:
     """``detect(image)`` -> the ground-truth boxes of the frame registered with :meth:`set_truth`."""
+
+    uses_camera = True   # the registry passes the run's camera
+    uses_seed = True     # a sweep passes the run's seed
 
     def __init__(self, min_visibility: float = 0.3, min_height_px: float = 4.0, jitter_px: float = 0.0,
                  miss_rate: float = 0.0, false_positives: float = 0.0, seed: int = 0,

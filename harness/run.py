@@ -26,7 +26,7 @@ from harness.scenario import Scenario
 from harness.scoring.evaluate import EvalConfig, jsonable
 from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
-from monorarp.registry import get_factory, instantiate
+from monorarp.registry import get_factory, instantiate, uses
 from monorarp.types import FrameResult
 
 if TYPE_CHECKING:
@@ -39,10 +39,9 @@ def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pip
 
     Every component name is resolved before anything is built, so an unknown
     name is reported before a model is loaded. ``camera`` is passed to every
-    factory that takes a ``camera`` argument. Raises
+    factory that declares ``uses_camera``. Raises
     :class:`~monorarp.errors.UserError` for unknown names or unusable model files.
     """
-    import harness.oracle  # noqa: F401  (registers the "oracle" detector)
     from monorarp.detection import load_detector
 
     cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
@@ -95,9 +94,7 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
     camera = scenario.camera.model()
     pipeline = build_pipeline(cfg, camera)     # bad component names / model files fail before any output
     true_speeds: dict[float, float] = {}
-    from monorarp.pipeline import _takes_ego_speed
-
-    if gps_speed and _takes_ego_speed(pipeline.risk):
+    if gps_speed and uses(pipeline.risk, "ego_speed"):
         pipeline.risk = GpsFallbackRisk(pipeline.risk, true_speeds)
     n = scenario.n_frames if n_frames is None else int(n_frames)
     # looked up on the module, so tests can count renders by patching harness.frame_feed.rendered_frames

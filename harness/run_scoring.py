@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows
 from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, PipelineConfig
-from monorarp.registry import build
+from monorarp.registry import build, uses
 from monorarp.types import FrameResult, RiskEstimate
 
 
@@ -58,9 +58,7 @@ def ego_speed_sources(results: list[FrameResult], pipeline: Pipeline, gps_speed:
 
     None when the risk stage takes no ego speed (the 1/TTC risk works on relative velocities).
     """
-    from monorarp.pipeline import _takes_ego_speed
-
-    if not _takes_ego_speed(pipeline.risk):
+    if not uses(pipeline.risk, "ego_speed"):
         return None
     n_est = sum(r.ego_speed is not None for r in results)
     rest = len(results) - n_est

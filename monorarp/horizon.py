@@ -26,7 +26,6 @@ import math
 import numpy as np
 
 from monorarp.camera import CameraModel
-from monorarp.registry import register
 from monorarp.types import HorizonReading
 from monorarp.video.horizon import _angular_residual, _lines, lane_segments, vanishing_point
 
@@ -64,9 +63,10 @@ def row_std_px(seg: np.ndarray, u: float, v: float, inlier_deg: float = 1.5) -> 
     return math.sqrt(max(cov[1, 1], 0.0))
 
 
-@register("horizon", "calibrated")
 class CalibratedHorizon:
     """The calibration's horizon row every frame, with a stated pitch uncertainty (deg)."""
+
+    uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel, pitch_std_deg: float = 0.0) -> None:
         if not (math.isfinite(pitch_std_deg) and 0 <= pitch_std_deg < 10):
@@ -78,9 +78,11 @@ class CalibratedHorizon:
         return self.reading
 
 
-@register("horizon", "online")
 class OnlineHorizon:
     """Per-frame horizon row from the lane lines' vanishing point (module docstring)."""
+
+    uses_camera = True   # the registry passes the run's camera
+    uses_seed = True     # a sweep passes the run's seed
 
     def __init__(self, camera: CameraModel, roi_margin_px: float = 10.0, min_inliers: int = 4,
                  max_offset_deg: float = 3.0, floor_std_px: float = 0.1, fallback_pitch_std_deg: float = 0.5,

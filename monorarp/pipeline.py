@@ -1,19 +1,11 @@
 """The pipeline: detector -> tracker -> state estimator -> risk estimator (Table I).
 
-Stage interfaces (any object with these methods works; built-ins come from
-:mod:`monorarp.registry`):
-
-* detector  ``detect(image) -> list[Detection]``
-* ego_speed ``update(image, t) -> float | None`` (optional; m/s)
-* horizon   ``update(image, t) -> HorizonReading`` (optional, :mod:`monorarp.horizon`): the
-  frame's horizon row; a state estimator whose ``update`` takes a ``horizon`` keyword gets it
-  (none = the calibrated horizon)
-* tracker   ``update(image, detections, t) -> list[Track]``
-* state     ``update(tracks, t) -> dict[int, ObjectState]``
-* risk      ``assess(states, t) -> RiskEstimate``; when it takes an ``ego_speed``
-  keyword (m/s or None), it gets the frame's ego-speed estimate (same frame, both runners)
-* warning   ``update(states, risk, t) -> WarningState`` (optional): the forward-collision
-  warning decision, episodes with hysteresis (:mod:`monorarp.warning`)
+Stage contracts are the Protocols of :mod:`monorarp.types` (any object with those methods
+works; built-ins are named in :mod:`monorarp.catalogue` and built by :mod:`monorarp.registry`):
+detector, optional ego_speed (m/s), optional horizon (none = the calibrated horizon; the state
+estimator gets each frame's reading as ``horizon=``), tracker, state, risk (gets the frame's
+ego-speed estimate as ``ego_speed=``, m/s or None, same frame in both runners), optional warning
+(the forward-collision warning decision, :mod:`monorarp.warning`).
 
 Two runners give identical outputs on offline input: :func:`run_sync` (one
 thread, frame after frame) and :func:`run_threaded` (each stage on its own
@@ -31,14 +23,16 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from monorarp.camera import CameraModel
 from monorarp import registry
-from monorarp.types import Frame, FrameResult, WarningState
+from monorarp.types import (Detection, Detector, EgoSpeedEstimator, Frame, FrameResult, HorizonReading, HorizonStage,
+                            ObjectState, RiskEstimate, RiskEstimator, StateEstimator, Track, Tracker, WarningStage,
+                            WarningState)
 
 
 class ComponentConfig(BaseModel):
@@ -63,11 +57,40 @@ class PipelineConfig(BaseModel):
     horizon: ComponentConfig | None = None
 
 
+@dataclass
+class _Record:
+    """One frame's working record on its way through the stages (filled stage by stage)."""
+
+    frame: Frame
+    timings: dict[str, float] = field(default_factory=dict)   # stage -> ms
+    detections: list[Detection] = field(default_factory=list)
+    ego_speed: float | None = None
+    horizon: HorizonReading | None = None
+    tracks: list[Track] = field(default_factory=list)
+    states: dict[int, ObjectState] = field(default_factory=dict)
+    risk: RiskEstimate | None = None
+    warning: WarningState = field(default_factory=WarningState)
+
+    def timed(self, key: str, fn: Callable, *args: Any, **kwargs: Any) -> Any:
+        """``fn(*args, **kwargs)``, its time recorded under ``key`` (ms)."""
+        t0 = time.perf_counter()
+        out = fn(*args, **kwargs)
+        self.timings[key] = (time.perf_counter() - t0) * 1e3
+        return out
+
+    def result(self) -> FrameResult:
+        f = self.frame
+        return FrameResult(index=f.index, t=f.t, detections=self.detections, tracks=self.tracks,
+                           states=self.states, risk=self.risk, ego_speed=self.ego_speed,
+                           timings_ms=self.timings, warning=self.warning, horizon=self.horizon)
+
+
 class Pipeline:
     """One frame in, one :class:`FrameResult` out; see the module docstring for stage interfaces."""
 
-    def __init__(self, detector: Any, tracker: Any, state: Any, risk: Any, ego_speed: Any = None,
-                 warning: Any = None, horizon: Any = None) -> None:
+    def __init__(self, detector: Detector, tracker: Tracker, state: StateEstimator, risk: RiskEstimator,
+                 ego_speed: EgoSpeedEstimator | None = None, warning: WarningStage | None = None,
+                 horizon: HorizonStage | None = None) -> None:
         self.detector, self.tracker, self.state, self.risk, self.ego_speed = detector, tracker, state, risk, ego_speed
         self.warning, self.horizon = warning, horizon
 
@@ -75,9 +98,9 @@ class Pipeline:
     def from_config(cls, config: PipelineConfig | dict, camera: CameraModel | None = None) -> "Pipeline":
         """Build every stage through the registry (:func:`monorarp.registry.build`).
 
-        ``camera`` is passed to every component whose factory takes a ``camera``
-        parameter (the state estimator; the risk estimator, for its mounting
-        offsets) unless its kwargs already set one.
+        ``camera`` is passed to every component whose factory declares ``uses_camera = True``
+        (the state estimator; the risk estimator, for its mounting offsets; ...) unless its
+        kwargs already set one.
         """
         cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
 
@@ -95,104 +118,57 @@ class Pipeline:
             if hasattr(stage, "reset"):
                 stage.reset()
 
-    # The six stage steps, shared by both runners. Each takes and returns the
-    # frame's working record (a dict), and records its own time.
-    def _detect(self, rec: dict) -> dict:
-        rec["detections"] = list(_timed(rec, "detector", self.detector.detect, rec["frame"].image))
+    # The stage steps, shared by both runners. Each takes and returns the frame's
+    # working record and records its own time.
+    def _detect(self, rec: _Record) -> _Record:
+        rec.detections = list(rec.timed("detector", self.detector.detect, rec.frame.image))
         return rec
 
-    def _ego_speed(self, rec: dict) -> dict:
+    def _ego_speed(self, rec: _Record) -> _Record:
         if self.ego_speed is None:
-            rec["ego_speed"], rec["timings"]["ego_speed"] = None, 0.0
+            rec.ego_speed, rec.timings["ego_speed"] = None, 0.0
         else:
-            rec["ego_speed"] = _timed(rec, "ego_speed", self.ego_speed.update, rec["frame"].image, rec["frame"].t)
+            rec.ego_speed = rec.timed("ego_speed", self.ego_speed.update, rec.frame.image, rec.frame.t)
         return rec
 
-    def _horizon(self, rec: dict) -> dict:
+    def _horizon(self, rec: _Record) -> _Record:
         # only with a horizon stage: without one the timings keep their keys and the record has none
-        rec["horizon"] = _timed(rec, "horizon", self.horizon.update, rec["frame"].image, rec["frame"].t)
+        rec.horizon = rec.timed("horizon", self.horizon.update, rec.frame.image, rec.frame.t)
         return rec
 
-    def _track(self, rec: dict) -> dict:
-        f = rec["frame"]
-        rec["tracks"] = list(_timed(rec, "tracker", self.tracker.update, f.image, rec["detections"], f.t))
+    def _track(self, rec: _Record) -> _Record:
+        f = rec.frame
+        rec.tracks = list(rec.timed("tracker", self.tracker.update, f.image, rec.detections, f.t))
         return rec
 
-    def _state(self, rec: dict) -> dict:
-        reading = rec.get("horizon")
-        if reading is not None and _takes(self.state.update, "horizon"):
-            rec["states"] = dict(_timed(rec, "state", lambda tr, t: self.state.update(tr, t, horizon=reading),
-                                        rec["tracks"], rec["frame"].t))
-        else:
-            rec["states"] = dict(_timed(rec, "state", self.state.update, rec["tracks"], rec["frame"].t))
+    def _state(self, rec: _Record) -> _Record:
+        rec.states = dict(rec.timed("state", self.state.update, rec.tracks, rec.frame.t, horizon=rec.horizon))
         return rec
 
-    def _risk(self, rec: dict) -> dict:
-        if _takes_ego_speed(self.risk):   # e.g. the Monte Carlo estimator: absolute speeds need the ego's
-            rec["risk"] = _timed(rec, "risk", lambda s, t: self.risk.assess(s, t, ego_speed=rec["ego_speed"]),
-                                 rec["states"], rec["frame"].t)
-        else:
-            rec["risk"] = _timed(rec, "risk", self.risk.assess, rec["states"], rec["frame"].t)
+    def _risk(self, rec: _Record) -> _Record:
+        rec.risk = rec.timed("risk", self.risk.assess, rec.states, rec.frame.t, ego_speed=rec.ego_speed)
         return rec
 
-    def _warn(self, rec: dict) -> dict:
+    def _warn(self, rec: _Record) -> _Record:
         if self.warning is None:
-            rec["warning"], rec["timings"]["warning"] = WarningState(), 0.0
+            rec.warning, rec.timings["warning"] = WarningState(), 0.0
         else:
-            rec["warning"] = _timed(rec, "warning", self.warning.update, rec["states"], rec["risk"], rec["frame"].t)
+            rec.warning = rec.timed("warning", self.warning.update, rec.states, rec.risk, rec.frame.t)
         return rec
 
     @property
-    def steps(self) -> list[Callable[[dict], dict]]:
+    def steps(self) -> list[Callable[[_Record], _Record]]:
         horizon = [self._horizon] if self.horizon is not None else []
         return [self._detect, self._ego_speed, *horizon, self._track, self._state, self._risk, self._warn]
 
     def process(self, frame: Frame) -> FrameResult:
         """Run every stage on one frame."""
         t0 = time.perf_counter()
-        rec = _new_record(frame)
+        rec = _Record(frame)
         for step in self.steps:
             rec = step(rec)
-        rec["timings"]["total"] = (time.perf_counter() - t0) * 1e3
-        return _result(rec)
-
-
-_TAKES_EGO_SPEED: dict[type, bool] = {}
-_TAKES: dict[tuple[Any, str], bool] = {}
-
-
-def _takes(method: Any, parameter: str) -> bool:
-    """Does the bound ``method`` accept keyword ``parameter``? (cached per function)"""
-    key = (getattr(method, "__func__", method), parameter)
-    if key not in _TAKES:
-        _TAKES[key] = registry.takes(method, parameter)
-    return _TAKES[key]
-
-
-def _takes_ego_speed(risk: Any) -> bool:
-    """Does ``risk.assess`` accept an ``ego_speed`` keyword? (cached per class)"""
-    cls = type(risk)
-    if cls not in _TAKES_EGO_SPEED:
-        _TAKES_EGO_SPEED[cls] = registry.takes(risk.assess, "ego_speed")
-    return _TAKES_EGO_SPEED[cls]
-
-
-def _timed(rec: dict, key: str, fn: Callable, *args: Any) -> Any:
-    t0 = time.perf_counter()
-    out = fn(*args)
-    rec["timings"][key] = (time.perf_counter() - t0) * 1e3
-    return out
-
-
-def _new_record(frame: Frame) -> dict:
-    return {"frame": frame, "timings": {}}
-
-
-def _result(rec: dict) -> FrameResult:
-    f = rec["frame"]
-    return FrameResult(index=f.index, t=f.t, detections=rec["detections"], tracks=rec["tracks"],
-                       states=rec["states"], risk=rec["risk"], ego_speed=rec["ego_speed"],
-                       timings_ms=rec["timings"], warning=rec["warning"], horizon=rec.get("horizon"))
+        rec.timings["total"] = (time.perf_counter() - t0) * 1e3
+        return rec.result()
 
 
 # --------------------------------------------------------------------------- runners
@@ -242,14 +218,14 @@ def run_threaded(pipeline: Pipeline, frames: Iterable[Frame], queue_size: int = 
     def source() -> None:
         try:
             for frame in frames:
-                if not put(queues[0], _new_record(frame)):
+                if not put(queues[0], _Record(frame)):
                     return
         except BaseException as e:  # noqa: BLE001 - handed to the caller
             put(queues[0], _Failure(e))
             return
         put(queues[0], _END)
 
-    def worker(step: Callable[[dict], dict], q_in: queue.Queue, q_out: queue.Queue) -> None:
+    def worker(step: Callable[[_Record], _Record], q_in: queue.Queue, q_out: queue.Queue) -> None:
         while True:
             item = get(q_in)
             if item is _END or isinstance(item, _Failure):
@@ -275,9 +251,9 @@ def run_threaded(pipeline: Pipeline, frames: Iterable[Frame], queue_size: int = 
                 return
             if isinstance(item, _Failure):
                 raise item.error
-            t = item["timings"]
+            t = item.timings
             t["total"] = sum(t.values())
-            yield _result(item)
+            yield item.result()
     finally:
         stop.set()
         for th in threads:

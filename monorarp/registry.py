@@ -1,83 +1,103 @@
-"""Components chosen by name: a small registry plus ``importlib.metadata`` entry points.
+"""Components chosen by name: the mechanism only (what exists is declared elsewhere).
 
-Kinds: ``detector``, ``tracker``, ``state``, ``risk``, ``ego_speed``, ``warning``, ``horizon``. A plug-in
-package exposes a factory under the entry-point group ``monorarp.<kind>``::
+Kinds: ``detector``, ``tracker``, ``state``, ``risk``, ``ego_speed``, ``warning``, ``horizon``.
+A name resolves, in this order, to a factory given by :func:`add` (an explicit call, e.g. in a
+test), a built-in of :mod:`monorarp.catalogue`, or an entry point of the group
+``monorarp.<kind>`` (how other packages plug in)::
 
     [project.entry-points."monorarp.tracker"]
     mytracker = "mypkg.trackers:MyTracker"
+
+Built-ins are imported only when asked for. A factory receives the run's camera only when it
+declares ``uses_camera = True`` (a class attribute); see :func:`uses`.
 """
 
 from __future__ import annotations
 
-import inspect
+import importlib
 from collections.abc import Callable, Mapping
 from importlib.metadata import entry_points
 from typing import Any
 
+from monorarp.catalogue import BUILTINS
 from monorarp.errors import UserError
 
 KINDS = ("detector", "tracker", "state", "risk", "ego_speed", "warning", "horizon")
-_REGISTRY: dict[str, dict[str, Callable[..., Any]]] = {k: {} for k in KINDS}
+_ADDED: dict[str, dict[str, Callable[..., Any] | str]] = {k: {} for k in KINDS}
 
 
 class UnknownComponentError(UserError, LookupError):
     """A component name that is neither built in nor provided by an entry point."""
 
 
-def register(kind: str, name: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Decorator registering a component factory (usually a class) under ``kind``/``name``."""
-    if kind not in _REGISTRY:
+def _check_kind(kind: str) -> None:
+    if kind not in KINDS:
         raise ValueError(f"unknown component kind {kind!r}; kinds: {', '.join(KINDS)}")
 
-    def deco(factory: Callable[..., Any]) -> Callable[..., Any]:
-        _REGISTRY[kind][name] = factory
-        return factory
 
-    return deco
+def add(kind: str, name: str, factory: Callable[..., Any] | str) -> None:
+    """Make ``factory`` (a callable or a ``"module:Class"`` string) available as ``kind``/``name``."""
+    _check_kind(kind)
+    _ADDED[kind][name] = factory
 
 
-def _load_builtins() -> None:
-    # Importing the modules runs their @register decorators.
-    from monorarp import detection, ego_speed, horizon, risk, risk_mc, state, tracking, warning  # noqa: F401
+def remove(kind: str, name: str) -> None:
+    """Undo :func:`add` (no error when ``name`` was not added)."""
+    _check_kind(kind)
+    _ADDED[kind].pop(name, None)
+
+
+def resolve(target: str) -> Callable[..., Any]:
+    """The object named by ``"package.module:Attr"`` (imported now)."""
+    module, _, attr = target.partition(":")
+    obj: Any = importlib.import_module(module)
+    for part in attr.split("."):
+        obj = getattr(obj, part)
+    return obj
 
 
 def available(kind: str) -> list[str]:
-    _load_builtins()
-    names = set(_REGISTRY[kind]) | {ep.name for ep in entry_points(group=f"monorarp.{kind}")}
+    """Every name of ``kind``: added, built in, or from an entry point."""
+    _check_kind(kind)
+    names = set(_ADDED[kind]) | set(BUILTINS[kind]) | {ep.name for ep in entry_points(group=f"monorarp.{kind}")}
     return sorted(names)
 
 
 def get_factory(kind: str, name: str) -> Callable[..., Any]:
-    _load_builtins()
-    if name in _REGISTRY[kind]:
-        return _REGISTRY[kind][name]
+    """The factory of ``kind``/``name``; :class:`UnknownComponentError` when there is none."""
+    _check_kind(kind)
+    target = _ADDED[kind].get(name, BUILTINS[kind].get(name))
+    if target is not None:
+        return resolve(target) if isinstance(target, str) else target
     for ep in entry_points(group=f"monorarp.{kind}"):
         if ep.name == name:
             return ep.load()
     raise UnknownComponentError(f"unknown {kind} {name!r}; available: {', '.join(available(kind)) or 'none'}")
 
 
+def uses(component: Any, what: str) -> bool:
+    """Whether a factory or stage declares it uses ``what`` (``uses_<what> = True``).
+
+    Declared inputs: ``camera`` (the factory gets the run's :class:`~monorarp.camera.CameraModel`),
+    ``seed`` (a sweep gives it the run's seed), ``ego_speed`` (a risk stage whose result depends
+    on the ``ego_speed`` it is given; the harness may then fall back to the true speed).
+    """
+    return bool(getattr(component, f"uses_{what}", False))
+
+
 def create(kind: str, name: str, **kwargs: Any) -> Any:
-    """Instantiate the component registered as ``kind``/``name`` with ``kwargs``."""
+    """Instantiate the component ``kind``/``name`` with ``kwargs`` (nothing added)."""
     return get_factory(kind, name)(**kwargs)
 
 
-def takes(factory: Callable[..., Any], parameter: str) -> bool:
-    """Whether ``factory`` accepts a keyword ``parameter`` (False when it has no inspectable signature)."""
-    try:
-        return parameter in inspect.signature(factory).parameters
-    except (TypeError, ValueError):
-        return False
-
-
 def instantiate(factory: Callable[..., Any], kwargs: Mapping[str, Any], camera: Any = None) -> Any:
-    """Call ``factory(**kwargs)``, adding ``camera`` when the factory takes one and kwargs don't set it."""
+    """Call ``factory(**kwargs)``, adding ``camera`` when the factory uses one and kwargs don't set it."""
     kwargs = dict(kwargs)
-    if camera is not None and "camera" not in kwargs and takes(factory, "camera"):
+    if camera is not None and "camera" not in kwargs and uses(factory, "camera"):
         kwargs["camera"] = camera
     return factory(**kwargs)
 
 
 def build(kind: str, name: str, kwargs: Mapping[str, Any] | None = None, camera: Any = None) -> Any:
-    """The component ``kind``/``name`` built with ``kwargs`` and, where it takes one, the camera model."""
+    """The component ``kind``/``name`` built with ``kwargs`` and, where it uses one, the camera model."""
     return instantiate(get_factory(kind, name), kwargs or {}, camera)

@@ -22,7 +22,6 @@ from __future__ import annotations
 import numpy as np
 
 from monorarp.camera import CameraModel
-from monorarp.registry import register
 from monorarp.ttc import HORIZON_S, ego_extent, time_to_collision
 from monorarp.types import ObjectState, RiskEstimate
 
@@ -33,13 +32,14 @@ def object_extents(d_x: np.ndarray, d_y: np.ndarray, width_m: float, length_m: f
     return d_x - width_m / 2, d_x + width_m / 2, d_y, d_y + length_m
 
 
-@register("risk", "ttc")
 class TTCRiskEstimator:
     """``assess(states, t) -> RiskEstimate`` (equation 5, per-object TTC exposed).
 
     ``camera``: if given, its mounting offsets are used for
     ``camera_forward_offset_m`` / ``camera_lateral_offset_m``.
     """
+
+    uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, other_width_m: float = 1.8, other_length_m: float = 4.5, ego_width_m: float = 1.8,
                  ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
@@ -68,8 +68,10 @@ class TTCRiskEstimator:
                                 self.horizon_s)
         return {i: (None if np.isnan(v) else float(v)) for i, v in zip(ids, ttc)}
 
-    def assess(self, states: dict[int, ObjectState], t: float | None = None) -> RiskEstimate:
-        """Scene risk at frame time ``t`` (unused: constant-velocity TTC needs no clock)."""
+    def assess(self, states: dict[int, ObjectState], t: float | None = None,
+               ego_speed: float | None = None) -> RiskEstimate:
+        """Scene risk at frame time ``t``; ``t`` and ``ego_speed`` are unused (constant-velocity TTC on
+        relative velocities needs neither a clock nor the ego's speed)."""
         ttc = self.ttc(states)
         finite = [v for v in ttc.values() if v is not None]
         risk = max((1.0 / max(v, self.min_ttc_s) for v in finite), default=0.0)

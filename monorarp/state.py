@@ -16,7 +16,6 @@ from dataclasses import replace
 import numpy as np
 
 from monorarp.camera import CameraError, CameraModel
-from monorarp.registry import register
 from monorarp.state_geometry import (BORDER_TOL_PX, border_flags, box_distance, contact_line_cut,
                                      lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms)
 from monorarp.types import HorizonReading, ObjectState, Track
@@ -63,7 +62,6 @@ def kf_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, r: np.ndarray,
     return x, P
 
 
-@register("state", "geometric")
 class StateEstimator:
     """Tracks -> ``{track id: ObjectState}`` from box geometry and frame timestamps.
 
@@ -100,6 +98,8 @@ class StateEstimator:
             part of one), not motion, and absorbed by the filter it reads as tens of m/s of closing
             speed that a warning would trust (``inf``: never).
     """
+
+    uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel | dict, velocity: str = "kalman", motion: str = "ca",
                  process_std: float = 3.0, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,

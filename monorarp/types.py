@@ -7,12 +7,15 @@ columns 10..19 has ``x1 = 9.5`` and ``x2 = 19.5``.
 Distances and velocities are in the ego frame of :mod:`monorarp.camera`:
 ``d_x`` lateral offset of the vehicle's centre (m, + right), ``d_y``
 longitudinal distance to its rear face (m, + ahead), ``v_x``/``v_y`` its
-velocity minus the ego's (m/s).
+velocity minus the ego's (m/s). The stage contracts (``Detector`` ... ``HorizonStage``)
+close the module.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -136,3 +139,55 @@ class FrameResult:
     timings_ms: dict[str, float] = field(default_factory=dict)
     warning: WarningState = field(default_factory=WarningState)
     horizon: HorizonReading | None = None    # the horizon stage's reading (None: no stage, calibrated)
+
+
+# ------------------------------------------------------------------------------ stage contracts
+# What each pipeline stage must provide (structural: any object with these methods fits; none
+# needs to inherit). ``reset()`` (start a new sequence) is optional for every stage except the
+# tracker. Images are BGR uint8 (H, W, 3); ``t`` is the frame time (s).
+
+class Detector(Protocol):
+    """``detect(image) -> list[Detection]``: the vehicles of one frame."""
+
+    def detect(self, image: np.ndarray) -> list[Detection]: ...
+
+
+class Tracker(Protocol):
+    """Detections in, boxes with stable ids out."""
+
+    def update(self, image: np.ndarray, detections: list[Detection], t: float) -> list[Track]: ...
+
+    def reset(self) -> None: ...
+
+
+class StateEstimator(Protocol):
+    """Tracks -> relative state per track id (ego frame, m and m/s); ``horizon`` None = the calibrated one."""
+
+    def update(self, tracks: Sequence[Track], t: float,
+               horizon: HorizonReading | None = None) -> dict[int, ObjectState]: ...
+
+
+class RiskEstimator(Protocol):
+    """States -> scene risk. ``ego_speed``: the frame's ego-speed estimate (m/s) or None; an estimator
+    that does not need it ignores it (one that does declares ``uses_ego_speed = True``)."""
+
+    def assess(self, states: dict[int, ObjectState], t: float,
+               ego_speed: float | None = None) -> RiskEstimate: ...
+
+
+class EgoSpeedEstimator(Protocol):
+    """The ego's speed (m/s) from the frame, or None while it has no valid estimate."""
+
+    def update(self, image: np.ndarray, t: float) -> float | None: ...
+
+
+class WarningStage(Protocol):
+    """The forward-collision warning decision for one frame."""
+
+    def update(self, states: dict[int, ObjectState], risk: RiskEstimate, t: float) -> WarningState: ...
+
+
+class HorizonStage(Protocol):
+    """The frame's horizon row for equation 3."""
+
+    def update(self, image: np.ndarray, t: float) -> HorizonReading: ...

@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 
 from monorarp.camera import CameraModel
-from monorarp.registry import register
 from monorarp.risk import object_extents
 from monorarp.ttc import ego_extent, time_to_collision
 from monorarp.types import ObjectState, RiskEstimate, WarningState
@@ -27,7 +26,6 @@ def significant_lateral_velocity(v_x: np.ndarray, v_x_std: np.ndarray, sigmas: f
     return np.sign(v_x) * np.maximum(0.0, np.abs(v_x) - sigmas * v_x_std)
 
 
-@register("warning", "fcw")
 class ForwardCollisionWarning:
     """``update(states, risk, t) -> WarningState``: the in-path, TTC and hysteresis rules of the module docstring.
 
@@ -41,6 +39,8 @@ class ForwardCollisionWarning:
     at the cost of more false alarms: 4 -> 6 in 3 min of nominal traffic). ``None``: no
     acceleration term.
     """
+
+    uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, ttc_threshold_s: float = DEFAULT_TTC_THRESHOLD_S, min_on_s: float = 0.1,
                  hold_s: float = 1.0, lateral_sigmas: float = 3.0, lateral_velocity_std_mps: float = 0.5,

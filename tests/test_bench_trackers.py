@@ -59,14 +59,16 @@ def bench(tmp_path_factory):
 
     mp = pytest.MonkeyPatch()
     mp.setattr(OracleDetector, "detect", counting_detect)
-    mp.setitem(registry._REGISTRY["tracker"], "rec_a", lambda: Recording("a"))
-    mp.setitem(registry._REGISTRY["tracker"], "rec_b", lambda: Recording("b"))
+    registry.add("tracker", "rec_a", lambda: Recording("a"))
+    registry.add("tracker", "rec_b", lambda: Recording("b"))
     out = base / "out"
     try:
         rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "particle,kcf", "rec_a,rec_b",
                    "--detector", "oracle", "--frames", str(N_FRAMES), "--out", str(out)])
     finally:
         mp.undo()
+        registry.remove("tracker", "rec_a")
+        registry.remove("tracker", "rec_b")
     return rc, out, calls
 
 

@@ -179,7 +179,7 @@ class _Tracker:
 
 
 class _Risk:
-    def assess(self, states, t):
+    def assess(self, states, t, ego_speed=None):
         return RiskEstimate(0.0)
 
 

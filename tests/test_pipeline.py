@@ -9,11 +9,11 @@ import pytest
 
 from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, PipelineConfig, run_sync, run_threaded
-from monorarp.registry import register
+from monorarp import registry
 from monorarp.risk import TTCRiskEstimator
 from monorarp.state import StateEstimator
 from monorarp.tracking import ParticleTracker
-from monorarp.types import Detection, Frame
+from monorarp.types import Detection, Frame, RiskEstimate
 
 CAM = CameraModel.from_fov(320, 180, 60.0, 1.3)
 
@@ -104,12 +104,9 @@ def test_early_close_stops_threads():
     assert threading.active_count() <= before
 
 
-@register("detector", "_test_fake")
-def _fake_factory():
-    return FakeDetector()
-
-
-def test_from_config_builds_through_registry():
+def test_from_config_builds_through_registry(request):
+    registry.add("detector", "_test_fake", FakeDetector)
+    request.addfinalizer(lambda: registry.remove("detector", "_test_fake"))
     cfg = PipelineConfig.model_validate({"detector": {"name": "_test_fake"},
                                          "state": {"name": "geometric", "kwargs": {"velocity": "difference"}}})
     p = Pipeline.from_config(cfg, CAM)
@@ -183,3 +180,30 @@ def test_monte_carlo_threaded_equals_sync_with_ego_speed():
     p = build()
     list(run_sync(p, frames(3)))
     assert p.risk.ego_speed_source == "argument"
+
+
+def test_ttc_risk_takes_the_ego_speed_and_ignores_it():
+    with_speed = make()
+    with_speed.ego_speed = FakeEgoSpeed()
+    assert [strip(r)[:6] for r in run_sync(with_speed, frames(20))] == \
+        [strip(r)[:6] for r in run_sync(make(), frames(20))]
+
+
+def test_every_stage_is_called_with_the_uniform_keywords():
+    """The state stage gets ``horizon=`` and the risk stage ``ego_speed=`` even without those stages."""
+    calls = []
+
+    class State:
+        def update(self, tracks, t, *, horizon):
+            calls.append(("horizon", horizon))
+            return {}
+
+    class Risk:
+        def assess(self, states, t, *, ego_speed):
+            calls.append(("ego_speed", ego_speed))
+            return RiskEstimate(0.0)
+
+    for runner in (run_sync, run_threaded):
+        calls.clear()
+        list(runner(Pipeline(FakeDetector(), ParticleTracker(seed=1), State(), Risk()), frames(2)))
+        assert sorted(calls) == [("ego_speed", None)] * 2 + [("horizon", None)] * 2

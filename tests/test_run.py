@@ -25,7 +25,7 @@ from harness.scoring.records import read_csv
 from harness.video import read_video
 from monorarp.camera import CameraModel
 from monorarp.cli import main
-from monorarp.registry import register
+from monorarp import registry
 from monorarp.state import StateEstimator
 
 N_FRAMES = 12
@@ -176,7 +176,6 @@ def test_bad_scenario_exits_2(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
-@register("detector", "_test_fails_on_frame_3")
 class _Failing:
     def __init__(self):
         self.n = 0
@@ -188,7 +187,9 @@ class _Failing:
         return []
 
 
-def test_failure_midway_leaves_nothing(scenario, tmp_path):
+def test_failure_midway_leaves_nothing(scenario, tmp_path, request):
+    registry.add("detector", "_test_fails_on_frame_3", _Failing)
+    request.addfinalizer(lambda: registry.remove("detector", "_test_fails_on_frame_3"))
     out = tmp_path / "out"
     with pytest.raises(RuntimeError, match="boom"):
         run_scenario(scenario, {"detector": {"name": "_test_fails_on_frame_3"}}, n_frames=6, out_dir=out)

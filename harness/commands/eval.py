@@ -73,8 +73,6 @@ def run_kitti(args: argparse.Namespace) -> int:
         if not Path(detector).is_file():
             raise UserError(f"--detector: {detector}: no such ONNX model file")
     elif detector != LABELS_DETECTOR:
-        import harness.oracle  # noqa: F401  (the registry's detectors)
-
         if detector == "oracle":
             raise UserError("--detector: the run oracle needs simulation truth; on KITTI use --detector labels")
         get_factory("detector", detector)            # unknown names fail before anything is read

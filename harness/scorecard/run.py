@@ -70,11 +70,7 @@ def variant_for(trial: Trial, opts: ScorecardOptions) -> Variant:
         ego = trial.scenario.get("ego", {})
         constant = ego.get("behaviour") == "constant_speed" and not any(
             e.get("vehicle") == "ego" for e in trial.scenario.get("events", []))
-        from monorarp.registry import get_factory, takes
-
-        risk_kwargs: dict = {"n_rollouts": 200}
-        if takes(get_factory("risk", "monte_carlo"), "ego_model"):
-            risk_kwargs["ego_model"] = "constant_speed" if constant else "idm"
+        risk_kwargs = {"n_rollouts": 200, "ego_model": "constant_speed" if constant else "idm"}
         kw.update(risk="monte_carlo", ego_speed="ground_track", risk_kwargs=risk_kwargs)
     return Variant(name="scorecard", **kw)
 

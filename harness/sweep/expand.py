@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import copy
 import hashlib
-import inspect
 import itertools
 import json
 import math
@@ -119,19 +118,14 @@ def _camera_for_preflight(scenarios: list[dict]):
 
 
 def _inject_seeds(pipeline: dict, seed: int) -> dict:
-    """Give every component whose factory takes ``seed`` the run's seed, unless the spec set one."""
-    from harness.run import build_pipeline  # noqa: F401  (registers the oracle detector)
-    from monorarp.registry import get_factory
+    """Give every component whose factory declares ``uses_seed`` the run's seed, unless the spec set one."""
+    from monorarp.registry import get_factory, uses
 
     out = copy.deepcopy(pipeline)
     for kind, comp in out.items():
         if comp is None or comp["name"].lower().endswith(".onnx") or "seed" in comp["kwargs"]:
             continue
-        try:
-            takes = "seed" in inspect.signature(get_factory(kind, comp["name"])).parameters
-        except (TypeError, ValueError):
-            takes = False
-        if takes:
+        if uses(get_factory(kind, comp["name"]), "seed"):
             comp["kwargs"]["seed"] = int(seed)
     return out
 

@@ -1,7 +1,7 @@
 """Detectors: image (BGR uint8) -> list of :class:`monorarp.types.Detection`.
 
-Every detector has ``detect(image) -> list[Detection]`` (also callable directly).
-Registered: ``centernet`` (the project's own model, the default) and ``yolo``
+Every detector has ``detect(image) -> list[Detection]`` (:class:`monorarp.types.Detector`).
+Built in (:mod:`monorarp.catalogue`): ``centernet`` (the project's own model, the default) and ``yolo``
 (Ultralytics YOLOv8/YOLO11 ONNX exports). :func:`load_detector` takes a
 registered name or a path to an ``.onnx`` file whose layout it recognises.
 """
@@ -9,23 +9,16 @@ registered name or a path to an ``.onnx`` file whose layout it recognises.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
-import numpy as np
-
-from monorarp.detection import centernet, yolo  # noqa: F401  (registration)
 from monorarp.detection.centernet import CenterNetDetector, is_centernet_layout
 from monorarp.detection.onnx_runtime import ModelError, open_session, outputs
 from monorarp.detection.yolo import YoloDetector, output_layout
-from monorarp.types import Detection
+from monorarp.types import Detector
 
 DEFAULT_DETECTOR = "centernet"
 
-__all__ = ["Detector", "CenterNetDetector", "YoloDetector", "ModelError", "load_detector", "DEFAULT_DETECTOR"]
-
-
-class Detector(Protocol):
-    def detect(self, image: np.ndarray) -> list[Detection]: ...
+__all__ = ["CenterNetDetector", "YoloDetector", "ModelError", "load_detector", "DEFAULT_DETECTOR"]
 
 
 def load_detector(name_or_path: str | Path, camera: Any = None, **kw: Any) -> Detector:

@@ -20,7 +20,6 @@ from monorarp.detection.bottom_edge import refine_bottom as refine_bottom_edges
 from monorarp.detection.fovea import Fovea, merge
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
-from monorarp.registry import register
 from monorarp.types import Detection
 
 REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes/edge.md)
@@ -108,7 +107,6 @@ def decode(heatmap: np.ndarray, ltrb: np.ndarray, stride: int, score_threshold: 
     return merged, sc.astype(np.float64)
 
 
-@register("detector", "centernet")
 class CenterNetDetector:
     """The project's CenterNet-style vehicle detector (onnxruntime, CPU).
 
@@ -123,6 +121,8 @@ class CenterNetDetector:
     the detector's edge stays where no clear edge lies within a few px of it). ``dehaze``: remove haze
     (:func:`monorarp.detection.dehaze.dehaze`, dark channel prior) from each image before both passes.
     """
+
+    uses_camera = True   # the registry passes the run's camera
 
     FOVEA_DEFAULTS = {"fovea_zoom": 2.0, "fovea_below": 0.25}
 

@@ -21,7 +21,6 @@ import numpy as np
 
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
-from monorarp.registry import register
 from monorarp.types import Detection
 
 COCO_VEHICLES: dict[int, str] = {2: "car", 5: "bus", 7: "truck"}
@@ -79,7 +78,6 @@ def decode(raw: np.ndarray, layout: str, class_map: dict[int, str], conf_thresho
     return boxes, conf[idx], cls[idx]
 
 
-@register("detector", "yolo")
 class YoloDetector:
     """Vehicles from an Ultralytics YOLOv8/YOLO11 ONNX export (COCO car/bus/truck by default).
 

@@ -24,7 +24,6 @@ from monorarp.ego_speed.geometry import EgoSpeedError
 from monorarp.ego_speed.lane_lines import LaneLineFinder
 from monorarp.ego_speed.regression import pooled_slope
 from monorarp.ego_speed.stripes import StripeEdgeFinder, StripeEdges
-from monorarp.registry import register
 
 
 def check_markings(stripe_length_m: float, period_m: float) -> None:
@@ -51,7 +50,6 @@ class _Frame:
     ids: np.ndarray
 
 
-@register("ego_speed", "ground_track")
 class GroundTrackEgoSpeed:
     """Ego speed (m/s) from stripe ends tracked on the ground plane.
 
@@ -61,6 +59,8 @@ class GroundTrackEgoSpeed:
     rejected. ``max_gap_s``: after this long without tracked stripe ends the
     estimate becomes None. ``min_observations``: stripe-end observations needed in the window.
     """
+
+    uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel, stripe_length_m: float = 3.05, period_m: float = 12.19,
                  marking_width_m: float = 0.15, *, window_s: float = 0.6, y_near: float = 3.0,

@@ -28,7 +28,6 @@ import numpy as np
 from monorarp.camera import CameraModel
 from monorarp.ego_speed.geometry import EgoSpeedError, row_of_distance, row_scale
 from monorarp.ego_speed.ground_track import check_image, check_markings
-from monorarp.registry import register
 
 
 class _Side:
@@ -45,7 +44,6 @@ class _Side:
         self.appear.clear()
 
 
-@register("ego_speed", "lsd_period")
 class LsdPeriodEgoSpeed:
     """Ego speed (m/s) from the time between dash appearances at a fixed point (the paper's method).
 
@@ -54,6 +52,8 @@ class LsdPeriodEgoSpeed:
     levels by which paint must outshine the road. ``roi_far_m``: LSD runs on the
     image rows seeing the ground up to this distance.
     """
+
+    uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel, stripe_length_m: float = 3.05, period_m: float = 12.19,
                  marking_width_m: float = 0.15, *, ref_distance_m: float = 8.0, window_s: float = 3.0,

@@ -16,7 +16,6 @@ from typing import Literal
 import numpy as np
 
 from monorarp.errors import UserError
-from monorarp.registry import register
 from monorarp.risk_mc.drivers import ROW_NV, ROW_NX, ROW_NY, DriverDistribution, DriverParams
 from monorarp.risk_mc.rollout import EGO_MODELS, MAX_VEHICLES, RolloutConfig, RolloutResult, Scene, simulate
 from monorarp.risk_mc.scene import Geometry, Noise, lane_of, lane_range, road_positions
@@ -62,7 +61,6 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
-@register("risk", "monte_carlo")
 class MonteCarloRisk:
     """IDM/MOBIL Monte Carlo collision risk. ``assess(states, t, ego_speed=None) -> RiskEstimate``.
 
@@ -76,6 +74,10 @@ class MonteCarloRisk:
     every rollout (a non-reacting driver, as in FCW test protocols); the default
     ``"idm"`` lets it brake and change lane like the other drivers.
     """
+
+    uses_camera = True   # the registry passes the run's camera
+    uses_seed = True     # a sweep passes the run's seed
+    uses_ego_speed = True   # its result depends on the ego speed it is given
 
     def __init__(
         self,

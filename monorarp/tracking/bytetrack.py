@@ -30,7 +30,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.registry import register
 from monorarp.tracking.association import assign, iou_matrix
 from monorarp.tracking.kalman_box import BoxKalman
 from monorarp.tracking.sort import detections_array, to_tracks
@@ -48,7 +47,6 @@ def _match(track_boxes: np.ndarray, det_boxes: np.ndarray, min_iou: float, det_s
     return assign(1.0 - sim, 1.0 - min_iou)
 
 
-@register("tracker", "bytetrack")
 class ByteTracker:
     """ByteTrack; ``update(image, detections, t) -> list[Track]`` (``image``, ``t`` unused: one step per call).
 

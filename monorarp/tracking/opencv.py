@@ -14,7 +14,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from monorarp.registry import register
 from monorarp.tracking.association import associate_iou
 from monorarp.types import Detection, Track
 
@@ -198,28 +197,24 @@ class OpenCVMultiTracker:
                      coasting=coasting, age=o.age)
 
 
-@register("tracker", "kcf")
 class KCFTracker(OpenCVMultiTracker):
     """Kernelized Correlation Filter (``cv2.TrackerKCF_create``), the paper's comparison tracker."""
 
     algorithm = "kcf"
 
 
-@register("tracker", "csrt")
 class CSRTTracker(OpenCVMultiTracker):
     """Discriminative correlation filter with channel and spatial reliability (``cv2.TrackerCSRT_create``)."""
 
     algorithm = "csrt"
 
 
-@register("tracker", "mosse")
 class MOSSETracker(OpenCVMultiTracker):
     """Minimum Output Sum of Squared Error filter (``cv2.legacy.TrackerMOSSE_create``)."""
 
     algorithm = "mosse"
 
 
-@register("tracker", "medianflow")
 class MedianFlowTracker(OpenCVMultiTracker):
     """Median Flow, forward-backward Lucas-Kanade (``cv2.legacy.TrackerMedianFlow_create``)."""
 

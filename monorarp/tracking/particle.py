@@ -12,7 +12,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.registry import register
 from monorarp.tracking.association import associate_iou, iou_matrix
 from monorarp.types import Detection, Track
 
@@ -60,7 +59,6 @@ def fit_velocity(z: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.where(den[:, None] > 0, num / np.where(den > 0, den, 1.0)[:, None], 0.0)
 
 
-@register("tracker", "particle")
 class ParticleTracker:
     """Multi-object particle tracker; ``update(image, detections, t) -> list[Track]``.
 
@@ -83,6 +81,8 @@ class ParticleTracker:
         box_output: ``"detection"`` or ``"mean"`` (see module docstring).
         seed: RNG seed (results are deterministic for a given seed).
     """
+
+    uses_seed = True     # a sweep passes the run's seed
 
     def __init__(self, n_particles: int = 100, pos_noise: float = 0.03, size_noise: float = 0.02,
                  meas_noise: float = 0.05, min_iou: float = 0.2, min_hits: int = 2, max_coast: int = 10,

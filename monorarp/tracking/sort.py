@@ -21,7 +21,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.registry import register
 from monorarp.tracking.association import associate_iou
 from monorarp.tracking.kalman_box import BoxKalman
 from monorarp.types import Detection, Track
@@ -45,7 +44,6 @@ def to_tracks(ids, boxes, scores, labels, ages, coasting=None) -> list[Track]:
     return out
 
 
-@register("tracker", "sort")
 class SortTracker:
     """SORT; ``update(image, detections, t) -> list[Track]`` (``image`` and ``t`` unused: one step per call).
 
