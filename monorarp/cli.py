@@ -2,6 +2,11 @@
 ``monorarp.commands``): each entry point is a function ``register(subparsers)``
 that adds its parser and sets ``func``. This keeps :mod:`monorarp` free of any
 import of the harness while ``monorarp render``/``run``/``sweep`` live there.
+
+The harness's third-party dependencies (simulator, renderer, scoring) are the
+``harness`` extra. Without it the harness commands are still listed, and running
+one prints one line naming what to install (exit 2): whether the import fails
+while the command registers or when it runs.
 """
 
 from __future__ import annotations
@@ -14,6 +19,27 @@ from importlib.metadata import entry_points
 from monorarp import __version__
 from monorarp.errors import UserError
 
+HARNESS_HINT = "needs the simulation harness: pip install 'monorarp[harness]'"
+
+
+def _missing_dependency(error: ModuleNotFoundError) -> str | None:
+    """Top-level name of the missing third-party module, or None when a module of this project is missing."""
+    name = (error.name or "").split(".")[0]
+    return name if name and name not in ("monorarp", "harness") else None
+
+
+def _needs_harness(command: str, missing: str) -> int:
+    print(f"monorarp {command}: {HARNESS_HINT} (missing: {missing})", file=sys.stderr)
+    return 2
+
+
+def _add_unavailable(sub: argparse._SubParsersAction, command: str, missing: str) -> None:
+    """A stand-in for a harness command whose dependencies are not installed: takes any arguments
+    (``prefix_chars`` no argument starts with, so options land in ``args`` too) and prints the hint."""
+    p = sub.add_parser(command, help=f"({HARNESS_HINT})", add_help=False, prefix_chars="\0")
+    p.add_argument("args", nargs="*")
+    p.set_defaults(func=lambda args: _needs_harness(command, missing))
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="monorarp", description="Monocular collision-risk pipeline and its simulation harness.")
@@ -24,7 +50,13 @@ def build_parser() -> argparse.ArgumentParser:
         if ep.name in seen:  # the same distribution seen twice (e.g. a stray egg-info on sys.path)
             continue
         seen.add(ep.name)
-        ep.load()(sub)
+        try:
+            ep.load()(sub)
+        except ModuleNotFoundError as e:
+            missing = _missing_dependency(e)
+            if missing is None or not ep.module.startswith("harness."):
+                raise
+            _add_unavailable(sub, ep.name, missing)
     return parser
 
 
@@ -40,6 +72,11 @@ def main(argv: list[str] | None = None) -> int:
         message = " ".join(str(e).split())
         print(f"monorarp {args.command}: error: {message}", file=sys.stderr)
         return 2
+    except ModuleNotFoundError as e:
+        missing = _missing_dependency(e)
+        if missing is None or not getattr(args.func, "__module__", "").startswith("harness."):
+            raise
+        return _needs_harness(args.command, missing)
     except BrokenPipeError:  # e.g. `monorarp ... | head`: the reader left (recipe of Python's signal docs)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 1
