@@ -66,11 +66,11 @@ def recall(cond: dict | None, n_frames: int, dehaze: bool = False, seed: int | N
         for world in simulate(sc, n_frames):
             f = r.render(world)
             truth = frame_truth(world, r.camera, f.id_mask, f.full_pixels)
-            objs = truth["objects"]
-            counted = np.array([o["visibility"] >= MIN_VISIBILITY and o["d_long"] <= MAX_RANGE_M for o in objs],
+            objs = truth.objects
+            counted = np.array([o.visibility >= MIN_VISIBILITY and o.d_long <= MAX_RANGE_M for o in objs],
                                dtype=bool)
             dets = as_boxes([d.box for d in detector.detect(f.image)])
-            kept, ignored = split_ignored(as_boxes([o["box"] for o in objs]), counted, dets, MIN_IOU, 0.5,
+            kept, ignored = split_ignored(as_boxes([o.box for o in objs]), counted, dets, MIN_IOU, 0.5,
                                           out_of_range(dets, r.camera, MAX_RANGE_M))
             tp += len(kept)
             n_pred += int((~ignored).sum())

@@ -75,7 +75,7 @@ def bench(width: int, height: int, n_frames: int) -> None:
                 n_obj = 0
                 continue
             t_sim, t_render, t_truth = t_sim + b - a, t_render + c - b, t_truth + d - c
-            n_obj += len(truth["objects"])
+            n_obj += len(truth.objects)
         total, cpu = time.perf_counter() - t0, time.process_time() - c0
     print(f"{width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
           f"{n_frames / total:.1f} frames/s (process CPU {1e3 * cpu / n_frames:.1f} ms/frame, all threads); per frame sim {1e3 * t_sim / n_frames:.1f} ms, "

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 from harness.scenario import Scenario
 from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows, jsonable, write_frame_csv, write_metrics
 from harness.scoring.records import write_csv
-from harness.scoring.tables import summary_table  # noqa: F401  (re-exported for callers)
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
 from monorarp.registry import build, get_factory, instantiate
@@ -127,8 +127,8 @@ def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[R
 
 
 # ------------------------------------------------------------------------------ frames
-def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator[tuple[Frame, dict]]:
-    """(Frame, truth dict) of each simulated frame; the simulation is set up before the first yield."""
+def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator[tuple[Frame, FrameTruth]]:
+    """(Frame, truth) of each simulated frame; the simulation is set up before the first yield."""
     from harness.ground_truth import frame_truth
     from harness.render import Renderer
     from harness.simulation import simulate
@@ -136,7 +136,7 @@ def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator
     worlds = simulate(scenario, n_frames=n_frames)
     first = next(worlds, None)   # raises scenario errors the simulation finds, before any rendering
 
-    def gen() -> Iterator[tuple[Frame, dict]]:
+    def gen() -> Iterator[tuple[Frame, FrameTruth]]:
         if first is None:
             return
         with Renderer(scenario) as renderer:
@@ -198,17 +198,17 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
         if tmp:
             write_json_atomic(tmp / CAMERA_NAME, camera.to_dict())
 
-        truths: dict[int, dict] = {}
+        truths: dict[int, FrameTruth] = {}
         images: dict[int, Any] = {}
         oracle = getattr(pipeline.detector, "set_truth", None)
 
         def frames() -> Iterator[Frame]:
             for frame, truth in source:
                 truths[frame.index] = truth
-                true_speeds[frame.t] = float(truth["ego"]["speed"])
+                true_speeds[frame.t] = truth.ego.speed
                 images[frame.index] = frame.image
                 if truth_out is not None:
-                    truth_out.write(truth)
+                    truth_out.write(truth.to_json())
                 if frames_video is not None:
                     frames_video.write(frame.image)
                 if oracle is not None:
@@ -219,9 +219,9 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
             image = images.pop(res.index)
             if annotated is not None:
                 truth = truths[res.index]
-                speed = res.ego_speed if res.ego_speed is not None else truth["ego"]["speed"]  # estimate, else true
+                speed = res.ego_speed if res.ego_speed is not None else truth.ego.speed  # estimate, else true
                 annotated.write(draw_frame(image, res, warning_s=eval_config.warning_threshold_s, ego_speed=speed,
-                                           truth_boxes=[o["box"] for o in truth["objects"]]))
+                                           truth_boxes=[o.box for o in truth.objects]))
 
         runner = run_threaded if threaded else run_sync
         pipeline.reset()

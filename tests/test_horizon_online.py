@@ -80,7 +80,7 @@ def test_online_horizon_follows_the_true_row(vibrating_frames):
     for frame, truth in frames:
         r = h.update(frame.image, frame.t)
         assert r.source == "vanishing_point"
-        true = truth["camera"]["horizon_row"]
+        true = truth.camera.horizon_row
         err.append(r.row - true)
         cal_err.append(cam.horizon_row - true)
         std.append(r.std_px)

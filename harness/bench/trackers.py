@@ -31,6 +31,7 @@ import numpy as np
 from harness.scenario import Scenario, load_scenario
 from harness.scoring.evaluate import EvalConfig, evaluate, state_metrics
 from harness.scoring.records import ObjectRecord
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
 from monorarp.pipeline import ComponentConfig, PipelineConfig
@@ -62,7 +63,7 @@ class CachedSequence:
     name: str
     camera: CameraModel
     frames: list[Frame]
-    truths: list[dict]
+    truths: list[FrameTruth]
     detections: list[tuple[Detection, ...]]
     detector_ms: np.ndarray
 

@@ -104,8 +104,8 @@ def render_scenario(scenario, out: str | Path, n_frames: int, *, crf: int = 18,
                         rendered = renderer.render(world)
                         video.write(rendered.image)
                         record = frame_truth(world, camera, rendered)
-                        truth.write(record)
-                        seen.update(int(o["id"]) for o in record["objects"])
+                        truth.write(record.to_json())
+                        seen.update(o.id for o in record.objects)
                         frames += 1
     elapsed = time.perf_counter() - start
     return {"frames": frames, "objects": len(seen),
