@@ -23,12 +23,12 @@ import time
 import numpy as np
 
 from harness.ground_truth import frame_truth
-from harness.render import Renderer
+from harness.render.renderer import Renderer
 from harness.run import build_pipeline
 from harness.scenario import load_scenario_dict, parse_scenario
 from harness.scoring.evaluate import out_of_range
 from harness.scoring.match import MIN_IOU, as_boxes, split_ignored
-from harness.simulation import simulate
+from harness.simulation.simulator import simulate
 
 CONDITIONS = {
     "day": None,

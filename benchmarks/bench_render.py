@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from harness.ground_truth import frame_truth
-from harness.render import Renderer
+from harness.render.renderer import Renderer
 from harness.scenario import Scenario, parse_scenario
 from harness.world import VehicleState, WorldState
 
@@ -48,7 +48,7 @@ def synthetic_states(scenario: Scenario, n_frames: int, n_vehicles: int = 30):
 
 def states(scenario: Scenario, n_frames: int):
     try:
-        from harness.simulation import simulate
+        from harness.simulation.simulator import simulate
     except ImportError:
         return synthetic_states(scenario, n_frames), "synthetic"
     return simulate(scenario, n_frames), "harness.simulation"

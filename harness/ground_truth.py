@@ -74,7 +74,7 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
                 horizon_s: float = HORIZON_S) -> FrameTruth:
     """The ground-truth record of one frame.
 
-    ``id_mask`` is the renderer's id pass, or the :class:`~harness.render.RenderedFrame`
+    ``id_mask`` is the renderer's id pass, or the :class:`~harness.render.renderer.RenderedFrame`
     itself (then ``full_pixels`` comes from it). ``full_pixels`` (id -> unoccluded
     pixel count) is required for ``visibility``.
     """

@@ -34,10 +34,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from harness.scenario import Scenario
-from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows, jsonable, write_frame_csv, write_metrics
+from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows, write_frame_csv, write_metrics
 from harness.scoring.records import write_csv
 from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
+from monorarp.io import to_jsonable
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
 from monorarp.registry import build, get_factory, instantiate
 from monorarp.types import Frame, FrameResult, ObjectState, RiskEstimate
@@ -85,7 +86,7 @@ def describe(cfg: PipelineConfig) -> dict:
     """Component names and kwargs for ``metrics["config"]``."""
     comps = {k: getattr(cfg, k) for k in ("detector", "tracker", "state", "risk", "ego_speed", "warning", "horizon")}
     return {"components": {k: c.name for k, c in comps.items() if c is not None},
-            "component_kwargs": {k: jsonable(c.kwargs) for k, c in comps.items() if c is not None and c.kwargs}}
+            "component_kwargs": {k: to_jsonable(c.kwargs) for k, c in comps.items() if c is not None and c.kwargs}}
 
 
 def with_scenario_markings(cfg: PipelineConfig, scenario: Scenario) -> PipelineConfig:
@@ -130,8 +131,8 @@ def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[R
 def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator[tuple[Frame, FrameTruth]]:
     """(Frame, truth) of each simulated frame; the simulation is set up before the first yield."""
     from harness.ground_truth import frame_truth
-    from harness.render import Renderer
-    from harness.simulation import simulate
+    from harness.render.renderer import Renderer
+    from harness.simulation.simulator import simulate
 
     worlds = simulate(scenario, n_frames=n_frames)
     first = next(worlds, None)   # raises scenario errors the simulation finds, before any rendering
@@ -184,9 +185,9 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
                 "camera": {"width": camera.width, "height": camera.height}, **describe(cfg),
                 "threaded": bool(threaded), "fps_includes_render": not preload, "gps_speed": bool(gps_speed)}
 
-    from harness.output import JsonlWriter, atomic_output_dir, write_json_atomic
-    from harness.video import VideoWriter
     from monorarp.display import draw_frame
+    from monorarp.io import JsonlWriter, atomic_output_dir, write_json_atomic
+    from monorarp.video.writer import VideoWriter
 
     with ExitStack() as stack:
         tmp = stack.enter_context(atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES)) if out_dir else None

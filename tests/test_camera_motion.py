@@ -12,9 +12,9 @@ import pytest
 
 from harness.camera_motion import CameraMotion, CameraMotionModel
 from harness.ground_truth import frame_truth
-from harness.render import Renderer
 from harness.render.geometry import vehicle_pose_world
 from harness.render.meshes import vehicle_trimesh
+from harness.render.renderer import Renderer
 from harness.render.renderer import SKY_RGB
 from harness.scenario import ScenarioError, parse_scenario
 from harness.world import VehicleState, WorldState

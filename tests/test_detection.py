@@ -188,9 +188,9 @@ def test_committed_centernet_finds_rendered_vehicles():
     """AP@0.5 >= 0.8 against the harness's ground-truth boxes (visibility >= 0.5 and >= 8 px tall required;
     other visible vehicles ignored)."""
     from harness.ground_truth import frame_truth
-    from harness.render import Renderer
+    from harness.render.renderer import Renderer
     from harness.scenario import parse_scenario
-    from harness.simulation import simulate
+    from harness.simulation.simulator import simulate
 
     sys.path.insert(0, str(ROOT))
     from training.ap import ap_at, match

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from harness.ground_truth import frame_truth
-from harness.render import Renderer
 from harness.render.meshes import vehicle_layout
+from harness.render.renderer import Renderer
 from harness.scenario import parse_scenario
 from harness.truth import FrameTruth
 from harness.world import VehicleState, WorldState

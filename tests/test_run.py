@@ -21,11 +21,11 @@ from harness.render.meshes import vehicle_layout
 from harness.run import OUTPUT_NAMES, run_scenario
 from harness.scenario import parse_scenario
 from harness.scoring.records import read_csv
-from harness.video import read_video
 from monorarp.camera import CameraModel
 from monorarp.cli import main
 from monorarp.registry import register
 from monorarp.state import StateEstimator
+from monorarp.video.writer import read_video
 
 N_FRAMES = 12
 SCENARIO = {

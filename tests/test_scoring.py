@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 
 from harness.scoring import algo
-from harness.scoring.evaluate import EvalConfig, evaluate, jsonable, write_metrics
+from harness.scoring.evaluate import EvalConfig, evaluate, write_metrics
 from harness.scoring.match import iou_matrix, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import read_csv, write_csv
 from harness.truth import EgoTruth, FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
+from monorarp.io import to_jsonable
 from monorarp.types import Detection, FrameResult, ObjectState, RiskEstimate, Track
 
 
@@ -130,7 +131,7 @@ def test_warning_classification_by_hand():
     assert algo.warnings_from_ttc([2.0])[0] == False  # noqa: E712 - strictly below the threshold
     none = algo.warning_classification([None, 5.0], [None, 3.0])
     assert math.isnan(none["precision"]) and math.isnan(none["recall"])
-    assert jsonable(none)["precision"] is None
+    assert to_jsonable(none)["precision"] is None
 
 
 def test_precision_recall_counts():

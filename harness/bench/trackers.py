@@ -319,12 +319,11 @@ def run_bench(config: BenchConfig = BenchConfig(), out_dir: str | Path | None = 
     check_trackers(config.trackers)              # the cheapest refusal first
     if out_dir is None:
         return bench_trackers(config, log)
-    from harness.output import atomic_output_dir, write_json_atomic
-    from harness.scoring.evaluate import jsonable
+    from monorarp.io import atomic_output_dir, to_jsonable, write_json_atomic
 
     with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES) as tmp:
         result = bench_trackers(config, log)
-        clean = jsonable(result)
+        clean = to_jsonable(result)
         write_json_atomic(tmp / JSON_NAME, clean)
         (tmp / MD_NAME).write_text(table_iii(clean) + "\n")
     return result

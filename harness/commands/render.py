@@ -76,10 +76,10 @@ def render_scenario(scenario, out: str | Path, n_frames: int, *, crf: int = 18,
     from tqdm import tqdm
 
     from harness.ground_truth import frame_truth
-    from harness.output import JsonlWriter, atomic_output_dir, write_json_atomic
-    from harness.render import Renderer
-    from harness.simulation import simulate
-    from harness.video import VideoWriter
+    from harness.render.renderer import Renderer
+    from harness.simulation.simulator import simulate
+    from monorarp.io import JsonlWriter, atomic_output_dir, write_json_atomic
+    from monorarp.video.writer import VideoWriter
 
     if progress is None:
         progress = sys.stderr.isatty()

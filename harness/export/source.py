@@ -146,7 +146,7 @@ def _run_name(run_dir: Path) -> str:
 
 
 def _run_dir(run_dir: Path, n_frames: int | None) -> ExportSource:
-    from harness.video import read_video
+    from monorarp.video.writer import read_video
 
     missing = [n for n in (CAMERA_NAME, GROUND_TRUTH_NAME) if not (run_dir / n).is_file()]
     if missing:

@@ -427,8 +427,8 @@ def write_rows(rows: list[dict], path: Path) -> None:
 
 def evaluate_kitti(ds: Dataset, opts: KittiEvalOptions, out: str | Path) -> dict:
     """Run, score and write ``OUT/metrics.json`` and ``OUT/per_object.csv`` (all or nothing); returns metrics."""
-    from harness.output import atomic_output_dir
     from harness.scoring.evaluate import write_metrics
+    from monorarp.io import atomic_output_dir
 
     start = time.perf_counter()
     with atomic_output_dir(out, owned_names=OUTPUT_NAMES) as tmp:

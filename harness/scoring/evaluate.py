@@ -56,7 +56,6 @@ from typing import Any
 
 import numpy as np
 
-from harness.output import to_jsonable, write_json_atomic
 from harness.scoring import algo
 from harness.scoring.match import MIN_IOU, as_boxes, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
@@ -64,6 +63,7 @@ from harness.scoring.records import ObjectRecord, _cell
 from harness.scoring.warnings import warning_metrics
 from harness.truth import FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
+from monorarp.io import write_json_atomic
 from monorarp.types import FrameResult, RiskEstimate
 
 NAN = float("nan")
@@ -269,7 +269,7 @@ def evaluate(truths: Sequence[FrameTruth], results: Sequence[FrameResult], cfg: 
     for ``warning.*`` (:mod:`harness.scoring.warnings`); None: ``cfg.warning_threshold_s``.
     ``tracking=False``: the frames are independent images, ``tracking.*`` is all null.
 
-    Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`jsonable`.
+    Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`monorarp.io.to_jsonable`.
     """
     if len(truths) != len(results):
         raise ValueError(f"{len(truths)} truths but {len(results)} results")
@@ -440,11 +440,6 @@ def write_frame_csv(rows: Sequence[Mapping], path: str | Path) -> None:
         for r in rows:
             w.writerow([_cell(int(r[c]) if c == "risk_label" and np.isfinite(r[c]) else r[c])
                         for c in FRAME_COLUMNS])
-
-
-def jsonable(obj: Any) -> Any:
-    """Nested dicts/lists with numpy scalars -> plain JSON types; NaN/inf -> None."""
-    return to_jsonable(obj)
 
 
 def write_metrics(metrics: Mapping, path: str | Path) -> None:

@@ -7,10 +7,3 @@ Importing this package registers the built-in trackers with
 """
 
 from monorarp.tracking import association, bytetrack, opencv, particle, sort  # noqa: F401  (runs @register)
-from monorarp.tracking.bytetrack import ByteTracker
-from monorarp.tracking.opencv import CSRTTracker, KCFTracker, MedianFlowTracker, MOSSETracker, OpenCVMultiTracker
-from monorarp.tracking.particle import ParticleTracker
-from monorarp.tracking.sort import SortTracker
-
-__all__ = ["ByteTracker", "CSRTTracker", "KCFTracker", "MOSSETracker", "MedianFlowTracker", "OpenCVMultiTracker",
-           "ParticleTracker", "SortTracker", "association", "bytetrack", "opencv", "particle", "sort"]
