@@ -23,10 +23,10 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import numpy as np  # noqa: E402
 
-from harness.render import Renderer  # noqa: E402
+from harness.render.renderer import Renderer  # noqa: E402
 from harness.run import build_pipeline, with_scenario_markings  # noqa: E402
 from harness.scenario import load_scenario  # noqa: E402
-from harness.simulation import simulate  # noqa: E402
+from harness.simulation.simulator import simulate  # noqa: E402
 from monorarp.detection.bottom_edge import refine_bottom  # noqa: E402
 from monorarp.pipeline import ComponentConfig, PipelineConfig  # noqa: E402
 from monorarp.types import Frame  # noqa: E402

@@ -23,12 +23,12 @@ import time
 import numpy as np
 
 from harness.ground_truth import frame_truth
-from harness.render import Renderer
+from harness.render.renderer import Renderer
 from harness.run import build_pipeline
 from harness.scenario import load_scenario_dict, parse_scenario
 from harness.scoring.evaluate import out_of_range
 from harness.scoring.match import MIN_IOU, as_boxes, split_ignored
-from harness.simulation import simulate
+from harness.simulation.simulator import simulate
 
 CONDITIONS = {
     "day": None,
@@ -66,11 +66,11 @@ def recall(cond: dict | None, n_frames: int, dehaze: bool = False, seed: int | N
         for world in simulate(sc, n_frames):
             f = r.render(world)
             truth = frame_truth(world, r.camera, f.id_mask, f.full_pixels)
-            objs = truth["objects"]
-            counted = np.array([o["visibility"] >= MIN_VISIBILITY and o["d_long"] <= MAX_RANGE_M for o in objs],
+            objs = truth.objects
+            counted = np.array([o.visibility >= MIN_VISIBILITY and o.d_long <= MAX_RANGE_M for o in objs],
                                dtype=bool)
             dets = as_boxes([d.box for d in detector.detect(f.image)])
-            kept, ignored = split_ignored(as_boxes([o["box"] for o in objs]), counted, dets, MIN_IOU, 0.5,
+            kept, ignored = split_ignored(as_boxes([o.box for o in objs]), counted, dets, MIN_IOU, 0.5,
                                           out_of_range(dets, r.camera, MAX_RANGE_M))
             tp += len(kept)
             n_pred += int((~ignored).sum())

@@ -26,7 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def export_dataset(scenario: Path, size: tuple[int, int], frames: int, kind: str, out: Path) -> None:
-    from harness.export import export, open_source
+    from harness.export.exporter import export
+    from harness.export.source import open_source
 
     data = yaml.safe_load(scenario.read_text())
     data["camera"] = {**(data.get("camera") or {}), "width": size[0], "height": size[1]}

@@ -20,7 +20,7 @@ from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, run_sync, run_threaded
 from monorarp.risk import TTCRiskEstimator
 from monorarp.state import StateEstimator
-from monorarp.tracking import ParticleTracker
+from monorarp.tracking.particle import ParticleTracker
 from monorarp.types import Detection, Frame
 
 CAM = CameraModel.from_fov(640, 360, 60.0, 1.3)

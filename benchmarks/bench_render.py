@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 from harness.ground_truth import frame_truth
-from harness.render import Renderer
+from harness.render.renderer import Renderer
 from harness.scenario import Scenario, parse_scenario
 from harness.world import VehicleState, WorldState
 
@@ -48,7 +48,7 @@ def synthetic_states(scenario: Scenario, n_frames: int, n_vehicles: int = 30):
 
 def states(scenario: Scenario, n_frames: int):
     try:
-        from harness.simulation import simulate
+        from harness.simulation.simulator import simulate
     except ImportError:
         return synthetic_states(scenario, n_frames), "synthetic"
     return simulate(scenario, n_frames), "harness.simulation"
@@ -75,7 +75,7 @@ def bench(width: int, height: int, n_frames: int) -> None:
                 n_obj = 0
                 continue
             t_sim, t_render, t_truth = t_sim + b - a, t_render + c - b, t_truth + d - c
-            n_obj += len(truth["objects"])
+            n_obj += len(truth.objects)
         total, cpu = time.perf_counter() - t0, time.process_time() - c0
     print(f"{width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
           f"{n_frames / total:.1f} frames/s (process CPU {1e3 * cpu / n_frames:.1f} ms/frame, all threads); per frame sim {1e3 * t_sim / n_frames:.1f} ms, "

@@ -12,7 +12,7 @@ import time
 from highway_env.road.road import Road
 
 from harness.scenario import parse_scenario
-from harness.simulation import Simulation
+from harness.simulation.simulator import Simulation
 
 FRAMES = 300
 

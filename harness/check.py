@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from harness.output import write_json_atomic
 from harness.sweep.summary import flatten, is_deterministic
 from monorarp.errors import UserError
+from monorarp.io import write_json_atomic
 from monorarp.readers import MAX_JSON_BYTES, parse_json, read_text
 
 VERSION = 1

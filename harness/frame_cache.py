@@ -29,6 +29,7 @@ from typing import IO, Any
 import numpy as np
 
 from harness.scenario import Scenario
+from harness.truth import FrameTruth
 from monorarp.errors import UserError
 from monorarp.types import Frame
 
@@ -42,8 +43,8 @@ ENV_DIR = "MONORARP_CACHE_DIR"
 #: Packages whose version changes frames or truth.
 PACKAGES = ("highway-env", "gymnasium", "pyrender", "trimesh", "PyOpenGL", "numpy", "opencv-contrib-python-headless")
 #: Source files (relative to the repository root) whose content is part of the key.
-CODE_FILES = ("harness/render/*.py", "harness/simulation/*.py", "harness/ground_truth.py", "harness/world.py",
-              "harness/scenario.py", "monorarp/camera.py", "monorarp/ttc.py")
+CODE_FILES = ("harness/render/*.py", "harness/simulation/*.py", "harness/ground_truth.py", "harness/truth.py",
+              "harness/world.py", "harness/scenario.py", "monorarp/camera.py", "monorarp/ttc.py")
 MANIFEST, FRAMES, TRUTH, CAMERA = "manifest.json", "frames.bin", "truth.jsonl", "camera.json"
 STALE_TMP_S = 24 * 3600.0      # a temporary entry untouched this long (s) is abandoned, whoever wrote it
 
@@ -117,7 +118,7 @@ class FrameCache:
         self.last: str | None = None
 
     # ---------------------------------------------------------------- public
-    def frames(self, scenario: Scenario, n_frames: int) -> Iterator[tuple[Frame, dict]]:
+    def frames(self, scenario: Scenario, n_frames: int) -> Iterator[tuple[Frame, FrameTruth]]:
         """(Frame, truth) of each of the ``n_frames`` frames of ``scenario``, from the cache or rendered.
 
         As :func:`harness.frame_feed.rendered_frames`, scenario errors raise here, before any frame.
@@ -182,7 +183,7 @@ class FrameCache:
         return removed
 
     # ----------------------------------------------------------------- reads
-    def _open(self, key: str) -> Iterator[tuple[Frame, dict]] | None:
+    def _open(self, key: str) -> Iterator[tuple[Frame, FrameTruth]] | None:
         """The entry's frames after checking every file, or None (no entry; a bad one is removed)."""
         d = self.entry_dir(key)
         if not d.is_dir():
@@ -201,7 +202,7 @@ class FrameCache:
                 h.update(chunk)
                 n += len(chunk)
             _check_digest(FRAMES, n, h.hexdigest(), files[FRAMES])
-            truths = [json.loads(line) for line in (d / TRUTH).read_bytes().splitlines()]
+            truths = [FrameTruth.from_json(json.loads(line)) for line in (d / TRUTH).read_bytes().splitlines()]
             sizes = [int(s) for s in manifest["frame_bytes"]]
             if not len(truths) == len(sizes) == int(manifest["frames"]) or sum(sizes) != n:
                 raise _Corrupt("frame count or sizes disagree")
@@ -218,8 +219,8 @@ class FrameCache:
         return _replay(f, sizes, truths, shape, dtype)
 
     # ---------------------------------------------------------------- writes
-    def _store(self, key: str, material: dict, scenario: Scenario, source: Iterator[tuple[Frame, dict]],
-               lock: int | None) -> Iterator[tuple[Frame, dict]]:
+    def _store(self, key: str, material: dict, scenario: Scenario, source: Iterator[tuple[Frame, FrameTruth]],
+               lock: int | None) -> Iterator[tuple[Frame, FrameTruth]]:
         writer: _EntryWriter | None = None
         try:
             try:
@@ -313,7 +314,7 @@ class _EntryWriter:
         self._h[name].update(data)
         self._n[name] += len(data)
 
-    def add(self, image: np.ndarray, truth: dict) -> bool:
+    def add(self, image: np.ndarray, truth: FrameTruth) -> bool:
         """Append one frame; False when it cannot be stored (the entry is then abandoned)."""
         if self.shape is None:
             self.shape, self.dtype = tuple(image.shape), image.dtype.str
@@ -322,7 +323,7 @@ class _EntryWriter:
         try:
             blob = zlib.compress(np.ascontiguousarray(image).tobytes(), ZLIB_LEVEL)
             self._write(FRAMES, self._frames, blob)
-            self._write(TRUTH, self._truth, (json.dumps(truth, separators=(",", ":")) + "\n").encode())
+            self._write(TRUTH, self._truth, (json.dumps(truth.to_json(), separators=(",", ":")) + "\n").encode())
         except (OSError, TypeError, ValueError):
             return False
         self.sizes.append(len(blob))
@@ -361,13 +362,13 @@ class _EntryWriter:
 
 
 # ---------------------------------------------------------------------------- helpers
-def _replay(f: IO[bytes], sizes: list[int], truths: list[dict], shape: tuple[int, ...],
-            dtype: np.dtype) -> Iterator[tuple[Frame, dict]]:
+def _replay(f: IO[bytes], sizes: list[int], truths: list[FrameTruth], shape: tuple[int, ...],
+            dtype: np.dtype) -> Iterator[tuple[Frame, FrameTruth]]:
     with f:
         f.seek(0)
         for size, truth in zip(sizes, truths):
             image = np.frombuffer(bytearray(zlib.decompress(f.read(size))), dtype=dtype).reshape(shape)
-            yield Frame(index=int(truth["frame"]), t=float(truth["t"]), image=image), truth
+            yield Frame(index=truth.frame, t=truth.t, image=image), truth
 
 
 def _digest(size: int, sha256: str) -> dict[str, Any]:

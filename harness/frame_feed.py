@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import Any
 
 from harness.scenario import Scenario
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, run_sync, run_threaded
 from monorarp.types import Frame, FrameResult, ObjectState, RiskEstimate
@@ -24,8 +25,8 @@ from monorarp.types import Frame, FrameResult, ObjectState, RiskEstimate
 PRELOAD_BYTES = 1 << 30
 
 
-def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator[tuple[Frame, dict]]:
-    """(Frame, truth dict) of each simulated frame; the simulation is set up before the first yield."""
+def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator[tuple[Frame, FrameTruth]]:
+    """(Frame, truth record) of each simulated frame; the simulation is set up before the first yield."""
     from harness.ground_truth import frame_truth
     from harness.render import Renderer
     from harness.simulation import simulate
@@ -33,7 +34,7 @@ def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator
     worlds = simulate(scenario, n_frames=n_frames)
     first = next(worlds, None)   # raises scenario errors the simulation finds, before any rendering
 
-    def gen() -> Iterator[tuple[Frame, dict]]:
+    def gen() -> Iterator[tuple[Frame, FrameTruth]]:
         if first is None:
             return
         with Renderer(scenario) as renderer:
@@ -85,23 +86,23 @@ class FrameFeed:
     truth and image to ``oracle`` (an oracle detector's ``set_truth``) when given.
     """
 
-    def __init__(self, source: Iterable[tuple[Frame, dict]], true_speeds: dict[float, float],
-                 on_frame: Callable[[Any, dict], None], oracle: Callable[[dict, Any], None] | None = None) -> None:
+    def __init__(self, source: Iterable[tuple[Frame, FrameTruth]], true_speeds: dict[float, float],
+                 on_frame: Callable[[Any, FrameTruth], None], oracle: Callable[[FrameTruth, Any], None] | None = None) -> None:
         self.source, self.true_speeds, self.on_frame, self.oracle = source, true_speeds, on_frame, oracle
-        self.truths: dict[int, dict] = {}
+        self.truths: dict[int, FrameTruth] = {}
         self.images: dict[int, Any] = {}
 
     def frames(self) -> Iterator[Frame]:
         for frame, truth in self.source:
             self.truths[frame.index] = truth
-            self.true_speeds[frame.t] = float(truth["ego"]["speed"])
+            self.true_speeds[frame.t] = truth.ego.speed
             self.images[frame.index] = frame.image
             self.on_frame(frame.image, truth)
             if self.oracle is not None:
                 self.oracle(truth, frame.image)
             yield frame
 
-    def take(self, index: int) -> tuple[Any, dict]:
+    def take(self, index: int) -> tuple[Any, FrameTruth]:
         """(image, truth) of frame ``index``; the image is released."""
         return self.images.pop(index), self.truths[index]
 

@@ -1,4 +1,4 @@
-"""Exact per-frame ground truth, as one JSON-ready record per frame.
+"""Exact per-frame ground truth: the :class:`~harness.truth.FrameTruth` record of each frame.
 
 Distances (m), velocities (m/s) and TTC (s) in the ego frame of :mod:`monorarp.camera` (road-aligned
 with a moving camera), boxes (px) and 3-D corners (m) in the frame's true camera; one object per
@@ -9,11 +9,13 @@ docs/formats.md (``ground_truth.jsonl``); the moving camera's ``camera`` block: 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 
 import numpy as np
 
 from harness.render.geometry import box_corners_ego, road_vectors_to_ego, vehicles_footprints_ego
 from harness.render.meshes import vehicle_height
+from harness.truth import CameraTruth, EgoTruth, FrameTruth, ObjectTruth
 from harness.world import WorldState
 from monorarp.camera import CameraModel
 from monorarp.ttc import HORIZON_S, ego_extent, time_to_collision
@@ -37,10 +39,10 @@ def pixel_boxes(id_mask: np.ndarray) -> dict[int, tuple[list[float], int]]:
 
 
 def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Mapping[int, float] | None = None,
-                horizon_s: float = HORIZON_S) -> dict:
+                horizon_s: float = HORIZON_S) -> FrameTruth:
     """The ground-truth record of one frame.
 
-    ``id_mask`` is the renderer's id pass, or the :class:`~harness.render.RenderedFrame`
+    ``id_mask`` is the renderer's id pass, or the :class:`~harness.render.renderer.RenderedFrame`
     itself (then ``full_pixels`` comes from it). ``full_pixels`` (id -> unoccluded
     pixel count) is required for ``visibility``.
     """
@@ -55,18 +57,14 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
     visible = pixel_boxes(np.asarray(id_mask))
     vehicles = [v for v in world.vehicles if v.id in visible]
     vehicles.sort(key=lambda v: v.id)
-    record = {
-        "frame": int(world.frame),
-        "t": float(world.t),
-        "ego": {"speed": float(ego.speed), "x": float(ego.x), "y": float(ego.y),
-                "heading": float(ego.heading), "lane": int(ego.lane),
-                "crashed": bool(ego.crashed)},
-        "objects": [],
-    }
+    ego_truth = EgoTruth(speed=float(ego.speed), x=float(ego.x), y=float(ego.y), heading=float(ego.heading),
+                         lane=int(ego.lane), crashed=bool(ego.crashed))
+    pose = None
     if camera is not nominal:
         from harness.camera_motion import pose_record
 
-        record["camera"] = pose_record(camera, nominal)
+        pose = CameraTruth(**pose_record(camera, nominal))
+    record = FrameTruth(frame=int(world.frame), t=float(world.t), ego=ego_truth, camera=pose)
     if not vehicles:
         return record
     foot = vehicles_footprints_ego(vehicles, ego, camera)                        # (N, 4, 2)
@@ -77,23 +75,24 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
     ex, ey = ego_extent(ego.length, ego.width, camera.forward_offset_m, camera.lateral_offset_m)
     ttc = time_to_collision(foot[..., 0].min(1), foot[..., 0].max(1), foot[..., 1].min(1), foot[..., 1].max(1),
                             v_rel[:, 0], v_rel[:, 1], ex, ey, horizon_s)
+    objects = []
     for k, v in enumerate(vehicles):
         box, n_visible = visible[v.id]
         full = float(full_pixels.get(v.id, n_visible))
-        record["objects"].append({
-            "id": int(v.id),
-            "name": v.name,
-            "box": [float(b) for b in box],
-            "visibility": float(min(1.0, n_visible / full)) if full > 0 else 0.0,
-            "d_long": float(foot[k, :, 1].min()),
-            "d_lat": float(centres[k, 0]),
-            "v_long": float(v_rel[k, 1]),
-            "v_lat": float(v_rel[k, 0]),
-            "ttc": None if np.isnan(ttc[k]) else float(ttc[k]),
-            "lane_rel": int(v.lane - ego.lane),
-            "corners_cam": corners_cam[k].round(6).tolist(),
-            "length": float(v.length),
-            "width": float(v.width),
-            "crashed": bool(v.crashed),
-        })
-    return record
+        objects.append(ObjectTruth(
+            id=int(v.id),
+            name=v.name,
+            box=tuple(float(b) for b in box),
+            visibility=float(min(1.0, n_visible / full)) if full > 0 else 0.0,
+            d_long=float(foot[k, :, 1].min()),
+            d_lat=float(centres[k, 0]),
+            v_long=float(v_rel[k, 1]),
+            v_lat=float(v_rel[k, 0]),
+            ttc=None if np.isnan(ttc[k]) else float(ttc[k]),
+            lane_rel=int(v.lane - ego.lane),
+            corners_cam=tuple(map(tuple, corners_cam[k].round(6).tolist())),
+            length=float(v.length),
+            width=float(v.width),
+            crashed=bool(v.crashed),
+        ))
+    return replace(record, objects=tuple(objects))

@@ -14,7 +14,7 @@ gives the same detections whatever the thread timing):
   below the horizon (from ``camera`` when given, else the middle row).
 
 Feeding the truth: before each frame reaches :meth:`OracleDetector.detect`,
-the harness calls :meth:`OracleDetector.set_truth` with that frame's truth dict
+the harness calls :meth:`OracleDetector.set_truth` with that frame's truth record
 and its image. ``detect`` looks the truth up by the image object's identity
 (falling back to first-in-first-out order if the pipeline handed it a copy),
 so the synchronous and the threaded runners see the same truth for each frame.
@@ -24,10 +24,10 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
-from collections.abc import Mapping
 
 import numpy as np
 
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
 from monorarp.types import Detection
@@ -69,18 +69,18 @@ class OracleDetector:
         self.camera = camera
         self.label = label
         self._lock = threading.Lock()
-        self._pending: OrderedDict[object, tuple[np.ndarray | None, Mapping]] = OrderedDict()
+        self._pending: OrderedDict[object, tuple[np.ndarray | None, FrameTruth]] = OrderedDict()
         self._fifo = 0
 
     # ------------------------------------------------------------ truth feed
-    def set_truth(self, truth: Mapping, image: np.ndarray | None = None) -> None:
-        """Queue ``truth`` (a ``frame_truth`` dict) for the frame whose image is ``image``."""
+    def set_truth(self, truth: FrameTruth, image: np.ndarray | None = None) -> None:
+        """Queue ``truth`` (the frame's :class:`~harness.truth.FrameTruth`) for the frame whose image is ``image``."""
         with self._lock:
             self._fifo += 1
             key = id(image) if image is not None else ("fifo", self._fifo)
             self._pending[key] = (image, truth)
 
-    def _take(self, image: np.ndarray) -> Mapping:
+    def _take(self, image: np.ndarray) -> FrameTruth:
         with self._lock:
             entry = self._pending.get(id(image))
             if entry is not None and entry[0] is image:
@@ -98,13 +98,13 @@ class OracleDetector:
 
     __call__ = detect
 
-    def detections_for(self, truth: Mapping, size: tuple[int, int]) -> list[Detection]:
-        """The (noisy) detections of one frame's truth dict; ``size`` = image (width, height) in px."""
+    def detections_for(self, truth: FrameTruth, size: tuple[int, int]) -> list[Detection]:
+        """The (noisy) detections of one frame's truth; ``size`` = image (width, height) in px."""
         w, h = size
-        rng = np.random.default_rng([self.seed, int(truth["frame"])])
-        objs = [o for o in truth["objects"]
-                if o["visibility"] >= self.min_visibility and o["box"][3] - o["box"][1] >= self.min_height_px]
-        boxes = np.array([o["box"] for o in objs], dtype=float).reshape(-1, 4)
+        rng = np.random.default_rng([self.seed, truth.frame])
+        objs = [o for o in truth.objects
+                if o.visibility >= self.min_visibility and o.box[3] - o.box[1] >= self.min_height_px]
+        boxes = np.array([o.box for o in objs], dtype=float).reshape(-1, 4)
         keep = rng.random(len(boxes)) >= self.miss_rate if self.miss_rate > 0 else np.ones(len(boxes), bool)
         boxes = boxes[keep]
         if self.jitter_px > 0 and len(boxes):

@@ -23,8 +23,9 @@ from harness.frame_feed import PRELOAD_BYTES, FrameFeed, GpsFallbackRisk, fits_i
 from harness.run_outputs import RunOutputs
 from harness.run_scoring import score_run
 from harness.scenario import Scenario
-from harness.scoring.evaluate import EvalConfig, jsonable
+from harness.scoring.evaluate import EvalConfig
 from monorarp.camera import CameraModel
+from monorarp.io import to_jsonable
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
 from monorarp.registry import get_factory, instantiate, uses
 from monorarp.types import FrameResult
@@ -61,7 +62,7 @@ def describe(cfg: PipelineConfig) -> dict:
     """Component names and kwargs for ``metrics["config"]``."""
     comps = {k: getattr(cfg, k) for k in ("detector", "tracker", "state", "risk", "ego_speed", "warning", "horizon")}
     return {"components": {k: c.name for k, c in comps.items() if c is not None},
-            "component_kwargs": {k: jsonable(c.kwargs) for k, c in comps.items() if c is not None and c.kwargs}}
+            "component_kwargs": {k: to_jsonable(c.kwargs) for k, c in comps.items() if c is not None and c.kwargs}}
 
 
 def with_scenario_markings(cfg: PipelineConfig, scenario: Scenario) -> PipelineConfig:

@@ -21,6 +21,7 @@ from typing import Any
 
 from harness.scoring.evaluate import write_frame_csv, write_metrics
 from harness.scoring.records import write_csv
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.io import JsonlWriter, atomic_output_dir, write_json_atomic
 from monorarp.types import FrameResult
@@ -70,22 +71,22 @@ class RunOutputs:
     def __exit__(self, *exc_info: Any) -> bool | None:
         return self._stack.__exit__(*exc_info)
 
-    def record_frame(self, image: Any, truth: dict) -> None:
+    def record_frame(self, image: Any, truth: FrameTruth) -> None:
         """Append one frame's truth to ``ground_truth.jsonl`` and its image (BGR) to ``frames.mp4``."""
         if self._truth is not None:
-            self._truth.write(truth)
+            self._truth.write(truth.to_json())
         if self._frames is not None:
             self._frames.write(image)
 
-    def annotate(self, image: Any, res: FrameResult, truth: dict, warning_s: float) -> None:
+    def annotate(self, image: Any, res: FrameResult, truth: FrameTruth, warning_s: float) -> None:
         """Append the annotated display of ``res`` over ``image`` to ``annotated.mp4``."""
         if self._annotated is None:
             return
         from monorarp.display import draw_frame
 
-        speed = res.ego_speed if res.ego_speed is not None else truth["ego"]["speed"]  # estimate, else true
+        speed = res.ego_speed if res.ego_speed is not None else truth.ego.speed  # estimate, else true
         self._annotated.write(draw_frame(image, res, warning_s=warning_s, ego_speed=speed,
-                                         truth_boxes=[o["box"] for o in truth["objects"]]))
+                                         truth_boxes=[o.box for o in truth.objects]))
 
     def write_scores(self, metrics: dict, records: list, frame_rows: list[dict]) -> None:
         """Write ``metrics.json``, ``per_object.csv`` and ``per_frame.csv``."""

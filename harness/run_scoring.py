@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, PipelineConfig
 from monorarp.registry import build, uses
@@ -22,7 +23,7 @@ class RunScore:
 
     metrics: dict
     records: list
-    truths: list[dict]
+    truths: list[FrameTruth]
     results: list[FrameResult]
     eval_config: EvalConfig
     baseline: list[RiskEstimate] | None
@@ -32,7 +33,7 @@ class RunScore:
         return frame_rows(self.truths, self.results, self.eval_config, self.baseline)
 
 
-def score_run(truths: list[dict], results: list[FrameResult], cfg: PipelineConfig, pipeline: Pipeline,
+def score_run(truths: list[FrameTruth], results: list[FrameResult], cfg: PipelineConfig, pipeline: Pipeline,
               camera: CameraModel, eval_config: EvalConfig, wall_time_s: float, run_info: dict,
               gps_speed: bool) -> RunScore:
     """Score ``results`` against ``truths`` (the same frames, in order); ``wall_time_s``: the pipeline's."""

@@ -48,27 +48,27 @@ def run_stats(data: dict, state_kw: dict) -> dict:
     ex, ey, nx, ny, ax, ay = {}, {}, [], [], [], []
     for (index, t, tracks), truth in zip(data["frames"], data["truths"]):
         states = est.update(tracks, t)
-        objs = [o for o in truth["objects"]]
+        objs = list(truth.objects)
         live = [tr for tr in tracks if not tr.coasting]
         if not objs or not live:
             continue
         boxes = as_boxes([tr.box for tr in live])
-        pairs = match_boxes(as_boxes([o["box"] for o in objs]), boxes, 0.5)
+        pairs = match_boxes(as_boxes([o.box for o in objs]), boxes, 0.5)
         z = measure_boxes(cam, boxes)
         whole = ~border_flags(cam, boxes, 4.0).any(axis=1)
         for g, e, _ in pairs:
             o, tr = objs[g], live[e]
-            if not (whole[e] and 5.0 <= o["d_long"] <= 60.0 and np.isfinite(z[e]).all()):
+            if not (whole[e] and 5.0 <= o.d_long <= 60.0 and np.isfinite(z[e]).all()):
                 continue
-            d = o["d_long"]
+            d = o.d_long
             ey.setdefault(tr.id, []).append((z[e, 1] - d) * cam.height_m * cam.fy / d ** 2)
-            ex.setdefault(tr.id, []).append((z[e, 0] - o["d_lat"]) * cam.fx / d)
+            ex.setdefault(tr.id, []).append((z[e, 0] - o.d_lat) * cam.fx / d)
             st = states.get(tr.id)
             if st is not None and st.v_x_std and st.v_y_std:
-                nx.append(abs(st.v_x - o["v_lat"]) / st.v_x_std)
-                ny.append(abs(st.v_y - o["v_long"]) / st.v_y_std)
-                ax.append(abs(st.v_x - o["v_lat"]))
-                ay.append(abs(st.v_y - o["v_long"]))
+                nx.append(abs(st.v_x - o.v_lat) / st.v_x_std)
+                ny.append(abs(st.v_y - o.v_long) / st.v_y_std)
+                ax.append(abs(st.v_x - o.v_lat))
+                ay.append(abs(st.v_y - o.v_long))
     return {"ex": [np.array(v) for v in ex.values()], "ey": [np.array(v) for v in ey.values()],
             "nx": nx, "ny": ny, "ax": ax, "ay": ay}
 

@@ -14,7 +14,7 @@ from harness.bench.trackers import pooled_tracking
 from harness.oracle import OracleDetector
 from monorarp import registry
 from monorarp.cli import main
-from monorarp.tracking import ParticleTracker
+from monorarp.tracking.particle import ParticleTracker
 
 N_FRAMES = 8
 SCENARIO = {

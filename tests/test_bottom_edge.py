@@ -106,9 +106,9 @@ def test_empty_input():
 
 def test_detector_option_is_validated_and_applied():
     """On a rendered frame: ``refine_bottom=True`` = the plain detector's boxes through :func:`refine_bottom`."""
-    from harness.render import Renderer
+    from harness.render.renderer import Renderer
     from harness.scenario import parse_scenario
-    from harness.simulation import simulate
+    from harness.simulation.simulator import simulate
     from tests.test_detection import SCENE
 
     with pytest.raises(ValueError, match="refine_bottom"):

@@ -12,9 +12,9 @@ import pytest
 
 from harness.camera_motion import CameraMotion, CameraMotionModel
 from harness.ground_truth import frame_truth
-from harness.render import Renderer
 from harness.render.geometry import vehicle_pose_world
 from harness.render.meshes import vehicle_trimesh
+from harness.render.renderer import Renderer
 from harness.render.renderer import SKY_RGB
 from harness.scenario import ScenarioError, parse_scenario
 from harness.world import VehicleState, WorldState
@@ -138,11 +138,11 @@ def moved_frames():
 def test_truth_carries_the_true_pose(moved_frames):
     poses = []
     for w, f, truth, nominal in moved_frames:
-        cam = truth["camera"]
-        assert cam["pitch_rad"] == pytest.approx(f.camera.pitch_rad)
-        assert cam["pitch_offset_rad"] == pytest.approx(f.camera.pitch_rad - nominal.pitch_rad)
-        assert cam["horizon_offset_px"] == pytest.approx(cam["horizon_row"] - nominal.horizon_row)
-        poses.append((cam["pitch_rad"], cam["roll_rad"]))
+        cam = truth.camera
+        assert cam.pitch_rad == pytest.approx(f.camera.pitch_rad)
+        assert cam.pitch_offset_rad == pytest.approx(f.camera.pitch_rad - nominal.pitch_rad)
+        assert cam.horizon_offset_px == pytest.approx(cam.horizon_row - nominal.horizon_row)
+        poses.append((cam.pitch_rad, cam.roll_rad))
     assert len(set(poses)) == len(poses)                           # it moves from frame to frame
     assert abs(poses[0][1]) > math.radians(0.4)
 
@@ -186,7 +186,7 @@ def test_silhouettes_where_cv2_projects_with_the_true_pose(moved_frames):
     for w, f, truth, nominal in moved_frames:
         if not w.vehicles:
             continue
-        R = _rotation_independent(truth["camera"]["pitch_rad"], truth["camera"]["roll_rad"])
+        R = _rotation_independent(truth.camera.pitch_rad, truth.camera.roll_rad)
         rvec, _ = cv2.Rodrigues(R)
         rvec_nominal, _ = cv2.Rodrigues(_rotation_independent(nominal.pitch_rad, 0.0))
         for v in w.vehicles:
@@ -209,7 +209,7 @@ def test_silhouettes_where_cv2_projects_with_the_true_pose(moved_frames):
                 ious.append((filled & rendered).sum() / (filled | rendered).sum())
             assert ious[0] >= 0.95 and ious[1] < 0.9, (v.id, ious)
             # the truth's 3-D box corners are in the true camera frame
-            corners = np.asarray(next(o for o in truth["objects"] if o["id"] == v.id)["corners_cam"])
+            corners = np.asarray(next(o for o in truth.objects if o.id == v.id).corners_cam)
             assert np.allclose(f.camera.project_cam(corners),
                                cv2.projectPoints(f.camera.cam_to_ego(corners).reshape(-1, 1, 3), rvec,
                                                  np.zeros(3), nominal.K, None)[0].reshape(-1, 2), atol=1e-4)
@@ -228,7 +228,7 @@ def test_rendered_horizon_is_the_true_tilted_one(moved_frames):
         R = _rotation_independent(cam.pitch_rad, cam.roll_rad)
         vp = nominal.K @ R @ np.array([0.0, 1.0, 0.0])
         u0, v0 = vp[:2] / vp[2]
-        assert v0 == pytest.approx(truth["camera"]["horizon_row"], abs=1e-6)
+        assert v0 == pytest.approx(truth.camera.horizon_row, abs=1e-6)
         off_nominal = []
         for col in (40, 160, 280):
             is_sky = np.abs(f.image[:, col].astype(int) - sky).max(axis=1) <= 2

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 import yaml
 
-from harness.video import read_video
 from monorarp.camera import CameraModel
 from monorarp.cli import main
+from monorarp.video.writer import read_video
 
 ROOT = Path(__file__).resolve().parents[1]
 N_FRAMES = 5
@@ -140,9 +140,9 @@ def test_video_matches_ground_truth_and_renderer(renders):
     assert len(frames) == len(recs) == N_FRAMES
     np.testing.assert_allclose([f.t for f in frames], [r["t"] for r in recs], atol=1e-3)
     # frame 0 decoded from the mp4 vs. the renderer's own BGR image: lossy but close, same channel order
-    from harness.render import Renderer
+    from harness.render.renderer import Renderer
     from harness.scenario import load_scenario
-    from harness.simulation import simulate
+    from harness.simulation.simulator import simulate
 
     scenario = load_scenario(scen)
     with Renderer(scenario) as r:

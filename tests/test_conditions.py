@@ -11,9 +11,9 @@ import cv2
 import numpy as np
 import pytest
 
-from harness.render import Renderer
 from harness.render import effects
 from harness.render.meshes import vehicle_color
+from harness.render.renderer import Renderer
 from harness.scenario import ScenarioError, load_scenario, parse_scenario
 from harness.world import VehicleState, WorldState
 from monorarp.cli import main

@@ -188,9 +188,9 @@ def test_committed_centernet_finds_rendered_vehicles():
     """AP@0.5 >= 0.8 against the harness's ground-truth boxes (visibility >= 0.5 and >= 8 px tall required;
     other visible vehicles ignored)."""
     from harness.ground_truth import frame_truth
-    from harness.render import Renderer
+    from harness.render.renderer import Renderer
     from harness.scenario import parse_scenario
-    from harness.simulation import simulate
+    from harness.simulation.simulator import simulate
 
     sys.path.insert(0, str(ROOT))
     from training.ap import ap_at, match
@@ -203,8 +203,8 @@ def test_committed_centernet_finds_rendered_vehicles():
         for w in list(simulate(scen, 16))[::5]:
             fr = r.render(w)
             truth = frame_truth(w, scen.camera.model(), fr)
-            boxes = np.array([o["box"] for o in truth["objects"]], float).reshape(-1, 4)
-            vis = np.array([o["visibility"] for o in truth["objects"]])
+            boxes = np.array([o.box for o in truth.objects], float).reshape(-1, 4)
+            vis = np.array([o.visibility for o in truth.objects])
             req = (vis >= 0.5) & (boxes[:, 3] - boxes[:, 1] >= 8)
             out = det.detect(fr.image)
             dets.append(np.array([d.box for d in out], float).reshape(-1, 4))

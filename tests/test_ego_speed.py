@@ -228,7 +228,7 @@ def rendered():
     try:
         from harness.render.renderer import Renderer
         from harness.scenario import load_scenario_dict, parse_scenario
-        from harness.simulation import simulate
+        from harness.simulation.simulator import simulate
     except Exception as e:  # noqa: BLE001 - renderer unavailable here (no EGL / not installed)
         pytest.skip(f"harness renderer unavailable: {e}")
     from pathlib import Path

@@ -25,6 +25,7 @@ import yaml
 from harness.export import geometry as geo
 from harness.export.mot import mot_to_box
 from harness.scoring.evaluate import EvalConfig, counted_mask
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.cli import main
 
@@ -62,7 +63,8 @@ def exported(tmp_path_factory):
     out["kitti_from_scenario"] = tmp / "kitti_scen"
     assert main(["export", str(scen), "--format", "kitti", "--out", str(out["kitti_from_scenario"]),
                  "--frames", "3"]) == 0
-    out["truth"] = [json.loads(line) for line in (run_dir / "ground_truth.jsonl").read_text().splitlines()]
+    out["truth"] = [FrameTruth.from_json(json.loads(line))
+                    for line in (run_dir / "ground_truth.jsonl").read_text().splitlines()]
     out["camera"] = CameraModel.load(run_dir / "camera.json")
     return out
 
@@ -108,25 +110,25 @@ def test_kitti_object_layout_and_label_fields(exported):
         img = cv2.imread(str(root / "image_2" / f"{k:06d}.png"))
         assert img.shape == (H, W, 3)
         labels = [parse_kitti_label(x) for x in (root / "label_2" / f"{k:06d}.txt").read_text().splitlines()]
-        assert len(labels) == len(tr["objects"])
+        assert len(labels) == len(tr.objects)
         n_lines += len(labels)
-        for lab, obj in zip(labels, tr["objects"]):
+        for lab, obj in zip(labels, tr.objects):
             assert lab["type"] in KITTI_TYPES and lab["type"] in ("Car", "Truck")
             assert 0.0 <= lab["truncated"] <= 1.0 and lab["occluded"] in (0, 1, 2, 3)
             assert -math.pi <= lab["alpha"] <= math.pi and -math.pi <= lab["rotation_y"] <= math.pi
             x1, y1, x2, y2 = lab["bbox"]
             assert -0.5 <= x1 < x2 <= W - 0.5 and -0.5 <= y1 < y2 <= H - 0.5
-            assert lab["bbox"] == pytest.approx(obj["box"], abs=0.005)
+            assert lab["bbox"] == pytest.approx(obj.box, abs=0.005)
             h, w, l = lab["dimensions"]
-            assert (h, w, l) == pytest.approx((np.linalg.norm(np.subtract(obj["corners_cam"][4], obj["corners_cam"][0])),
-                                               obj["width"], obj["length"]), abs=1e-4)
+            assert (h, w, l) == pytest.approx((np.linalg.norm(np.subtract(obj.corners_cam[4], obj.corners_cam[0])),
+                                               obj.width, obj.length), abs=1e-4)
             assert lab["location"][2] > 0
             # Same direction of travel as the ego: rotation_y near -pi/2 (KITTI's convention).
             assert abs(lab["rotation_y"] + math.pi / 2) < 0.5
             # alpha = rotation_y - atan2(x, z) of the location (KITTI's observation angle).
             a = lab["rotation_y"] - math.atan2(lab["location"][0], lab["location"][2])
             assert math.isclose(math.remainder(a - lab["alpha"], 2 * math.pi), 0.0, abs_tol=2e-4)
-            if obj["visibility"] >= 0.999:
+            if obj.visibility >= 0.999:
                 assert lab["occluded"] == 0
     assert n_lines > 3 * N_FRAMES
     manifest = json.loads((root / "export.json").read_text())
@@ -160,25 +162,25 @@ def test_projected_3d_boxes_match_opencv_the_2d_boxes_and_the_true_corners(expor
         P2 = parse_calib_plain(root / "calib" / f"{k:06d}.txt")["P2"].reshape(3, 4)
         K = P2[:, :3]
         labels = [parse_kitti_label(x) for x in (root / "label_2" / f"{k:06d}.txt").read_text().splitlines()]
-        for lab, obj in zip(labels, tr["objects"]):
+        for lab, obj in zip(labels, tr.objects):
             corners = compute_box_3d(lab)
             hom = (P2 @ np.c_[corners, np.ones(8)].T).T
             uv = hom[:, :2] / hom[:, 2:]
             cv_uv, _ = cv2.projectPoints(corners.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, None)
             np.testing.assert_allclose(uv, cv_uv.reshape(-1, 2), atol=1e-6)
             # The rebuilt box is the true one up to the camera's pitch (KITTI has no pitch of the box).
-            true = np.array(obj["corners_cam"])[geo.KITTI_CORNER_ORDER]
+            true = np.array(obj.corners_cam)[geo.KITTI_CORNER_ORDER]
             r = np.linalg.norm(true - true[:4].mean(axis=0), axis=1)
             assert np.all(np.linalg.norm(corners - true, axis=1) <= bound * r + 2e-3)
-            if lab["occluded"] == 0 and lab["truncated"] == 0 and obj["visibility"] >= 0.999:
+            if lab["occluded"] == 0 and lab["truncated"] == 0 and obj.visibility >= 0.999:
                 x1, y1, x2, y2 = lab["bbox"]
                 u0, v0 = uv.min(axis=0)
                 u1, v1 = uv.max(axis=0)
                 # Left and right: the body's sides, to a pixel. Top and bottom: the box's corners lie
                 # outside the car's curved mesh (roof behind the rear face, tyres ahead of it).
-                assert abs(u0 - x1) <= 1.5 and abs(u1 - x2) <= 1.5, (k, obj["id"], (u0, v0, u1, v1), lab["bbox"])
+                assert abs(u0 - x1) <= 1.5 and abs(u1 - x2) <= 1.5, (k, obj.id, (u0, v0, u1, v1), lab["bbox"])
                 tol_v = max(1.5, 0.1 * (y2 - y1))
-                assert abs(v0 - y1) <= tol_v and abs(v1 - y2) <= tol_v, (k, obj["id"], (u0, v0, u1, v1), lab["bbox"])
+                assert abs(v0 - y1) <= tol_v and abs(v1 - y2) <= tol_v, (k, obj.id, (u0, v0, u1, v1), lab["bbox"])
                 checked += 1
     assert checked >= N_FRAMES
 
@@ -233,7 +235,7 @@ def test_kitti_tracking_labels_calib_and_seqmap(exported):
                                                        "image_02", "label_02"]
     assert len(list((root / "image_02" / "0000").glob("*.png"))) == N_FRAMES
     lines = (root / "label_02" / "0000.txt").read_text().splitlines()
-    expected = [(tr["frame"], o["id"]) for tr in truth for o in tr["objects"]]
+    expected = [(tr.frame, o.id) for tr in truth for o in tr.objects]
     assert [(int(x.split()[0]), int(x.split()[1])) for x in lines] == expected
     obj_labels = {(k, i): parse_kitti_label(" ".join(line.split()[2:]))
                   for (k, i), line in zip(expected, lines)}
@@ -268,24 +270,24 @@ def test_mot_gt_and_det_round_trip_through_motmetrics(exported):
     assert sorted(p.name for p in (seq / "img1").iterdir()) == [f"{k:06d}.jpg" for k in range(1, N_FRAMES + 1)]
 
     gt = mm_io.loadtxt(str(seq / "gt" / "gt.txt"), fmt="mot15-2D")
-    expected = {(tr["frame"] + 1, o["id"]): (o, c) for tr in truth
-                for o, c in zip(tr["objects"], counted_mask(tr["objects"], EvalConfig()))}
+    expected = {(tr.frame + 1, o.id): (o, c) for tr in truth
+                for o, c in zip(tr.objects, counted_mask(tr.objects, EvalConfig()))}
     assert sorted(gt.index) == sorted(expected)
     for (frame, oid), row in gt.iterrows():
         o, counted = expected[(frame, oid)]
         # motmetrics subtracts 1 from MOT's 1-based X, Y: X is the 0-based index of the first pixel column.
-        assert (row["X"] - 0.5, row["Y"] - 0.5) == pytest.approx(o["box"][:2], abs=0.006)
-        assert mot_to_box(row["X"] + 1, row["Y"] + 1, row["Width"], row["Height"]) == pytest.approx(o["box"], abs=0.006)
+        assert (row["X"] - 0.5, row["Y"] - 0.5) == pytest.approx(o.box[:2], abs=0.006)
+        assert mot_to_box(row["X"] + 1, row["Y"] + 1, row["Width"], row["Height"]) == pytest.approx(o.box, abs=0.006)
         assert row["Confidence"] == int(counted) and row["ClassId"] == 3
-        assert row["Visibility"] == pytest.approx(o["visibility"], abs=1e-4)
+        assert row["Visibility"] == pytest.approx(o.visibility, abs=1e-4)
 
     # The oracle detector's boxes are the counted-enough truth boxes: det.txt must hold exactly them.
     det = mm_io.loadtxt(str(seq / "det" / "det.txt"), fmt="mot15-2D")
     assert len(det) > 0 and (det.index.get_level_values("Id") == -1).all()
     det_boxes = sorted((int(f), *np.round(mot_to_box(r["X"] + 1, r["Y"] + 1, r["Width"], r["Height"]), 2))
                        for (f, _), r in det.iterrows())
-    truth_boxes = sorted((tr["frame"] + 1, *np.round(o["box"], 2)) for tr in truth for o in tr["objects"]
-                         if o["visibility"] >= 0.3 and o["box"][3] - o["box"][1] >= 4.0)   # the oracle's rule
+    truth_boxes = sorted((tr.frame + 1, *np.round(o.box, 2)) for tr in truth for o in tr.objects
+                         if o.visibility >= 0.3 and o.box[3] - o.box[1] >= 4.0)   # the oracle's rule
     assert det_boxes == truth_boxes
 
 

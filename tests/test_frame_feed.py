@@ -4,17 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from harness.truth import FrameTruth
 from harness.frame_feed import FrameFeed, fits_in_memory, run_pipeline
 from monorarp.camera import CameraModel
 from monorarp.types import Frame
 
-TRUTHS = [{"frame": i, "t": i / 10, "ego": {"speed": 20.0 + i}, "objects": []} for i in range(3)]
+TRUTHS = [FrameTruth.from_json({"frame": i, "t": i / 10, "ego": {"speed": 20.0 + i}, "objects": []}) for i in range(3)]
 
 
 def _source(events):
     for truth in TRUTHS:
-        events.append(("made", truth["frame"]))
-        yield Frame(index=truth["frame"], t=truth["t"], image=np.zeros((2, 2, 3), np.uint8)), truth
+        events.append(("made", truth.frame))
+        yield Frame(index=truth.frame, t=truth.t, image=np.zeros((2, 2, 3), np.uint8)), truth
 
 
 def _frames(events):
@@ -35,8 +36,8 @@ class _Pipeline:
 
 def test_truth_speed_and_oracle_before_the_frame_enters():
     events, speeds = [], {}
-    feed = FrameFeed(_source(events), speeds, lambda image, truth: events.append(("recorded", truth["frame"])),
-                     lambda truth, image: events.append(("oracle", truth["frame"])))
+    feed = FrameFeed(_source(events), speeds, lambda image, truth: events.append(("recorded", truth.frame)),
+                     lambda truth, image: events.append(("oracle", truth.frame)))
     for frame in feed.frames():
         events.append(("yielded", frame.index))
     assert events[:4] == [("made", 0), ("recorded", 0), ("oracle", 0), ("yielded", 0)]

@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from harness.ground_truth import frame_truth
-from harness.render import Renderer
 from harness.render.meshes import vehicle_layout
+from harness.render.renderer import Renderer
 from harness.scenario import parse_scenario
+from harness.truth import FrameTruth
 from harness.world import VehicleState, WorldState
 
 FOCAL = 400.0
@@ -70,12 +71,12 @@ def _road_to_cam(cam, ego, pts_road):
 def test_box_matches_projected_geometry(renderer, lane_offset, d_rear):
     v = _car(5, d_rear, lane_offset)
     _, truth = _truth(renderer, [v])
-    (obj,) = truth["objects"]
+    (obj,) = truth.objects
     cam = renderer.camera
-    uv = _project(cam, obj["corners_cam"])
+    uv = _project(cam, obj.corners_cam)
     pu0, pv0 = uv.min(axis=0)
     pu1, pv1 = uv.max(axis=0)
-    x1, y1, x2, y2 = obj["box"]
+    x1, y1, x2, y2 = obj.box
     # Inside the projected 3-D box (1 px), sharing its left and right edges.
     assert x1 >= pu0 - 1 and y1 >= pv0 - 1 and x2 <= pu1 + 1 and y2 <= pv1 + 1
     assert abs(x1 - pu0) <= 1.0 and abs(x2 - pu1) <= 1.0
@@ -91,29 +92,29 @@ def test_box_matches_projected_geometry(renderer, lane_offset, d_rear):
                      [v.x + v.length / 2, v.y + v.width / 2], [v.x + v.length / 2, v.y - v.width / 2]])
     h = lay.roof
     expect = np.concatenate([np.c_[foot, np.zeros(4)], np.c_[foot, np.full(4, h)]])
-    np.testing.assert_allclose(obj["corners_cam"], _road_to_cam(cam, EGO, expect), atol=1e-5)
+    np.testing.assert_allclose(obj.corners_cam, _road_to_cam(cam, EGO, expect), atol=1e-5)
     # Distances from the road-frame positions.
-    assert obj["d_long"] == pytest.approx(d_rear, abs=1e-9)
-    assert obj["d_lat"] == pytest.approx(v.y - (EGO.y + LAT), abs=1e-9)
-    assert obj["visibility"] == 1.0
+    assert obj.d_long == pytest.approx(d_rear, abs=1e-9)
+    assert obj.d_lat == pytest.approx(v.y - (EGO.y + LAT), abs=1e-9)
+    assert obj.visibility == 1.0
 
 
 def test_distances_with_headings(renderer):
     ego = VehicleState(0, 500.0, 4.3, 0.04, 25.0, 25.0 * math.cos(0.04), 25.0 * math.sin(0.04), 1, 5.0, 2.0)
     v = VehicleState(9, 520.0, 3.0, -0.03, 20.0, 20.0 * math.cos(-0.03), 20.0 * math.sin(-0.03), 1, 4.5, 1.8)
     _, truth = _truth(renderer, [v], ego)
-    (obj,) = truth["objects"]
+    (obj,) = truth.objects
     ch, sh = math.cos(ego.heading), math.sin(ego.heading)
     cam = np.array([ego.x + FWD * ch - LAT * sh, ego.y + FWD * sh + LAT * ch])
     fwd, right = np.array([ch, sh]), np.array([-sh, ch])
     c, s = math.cos(v.heading), math.sin(v.heading)
     corners = [np.array([v.x, v.y]) + a * v.length / 2 * np.array([c, s]) + b * v.width / 2 * np.array([-s, c])
                for a in (-1, 1) for b in (-1, 1)]
-    assert obj["d_long"] == pytest.approx(min((p - cam) @ fwd for p in corners), abs=1e-9)
-    assert obj["d_lat"] == pytest.approx((np.array([v.x, v.y]) - cam) @ right, abs=1e-9)
+    assert obj.d_long == pytest.approx(min((p - cam) @ fwd for p in corners), abs=1e-9)
+    assert obj.d_lat == pytest.approx((np.array([v.x, v.y]) - cam) @ right, abs=1e-9)
     dv = np.array([v.vx - ego.vx, v.vy - ego.vy])
-    assert obj["v_long"] == pytest.approx(dv @ fwd, abs=1e-9)
-    assert obj["v_lat"] == pytest.approx(dv @ right, abs=1e-9)
+    assert obj.v_long == pytest.approx(dv @ fwd, abs=1e-9)
+    assert obj.v_lat == pytest.approx(dv @ right, abs=1e-9)
 
 
 def test_relative_velocity_and_ttc_closed_form(renderer):
@@ -121,36 +122,36 @@ def test_relative_velocity_and_ttc_closed_form(renderer):
     drift = _car(2, 10.0, -4.0 - LAT, speed=20.0, vy=1.0)       # left lane, drifting right at 1 m/s
     away = _car(3, 40.0, 4.0 - LAT, speed=30.0)                 # right lane, faster
     _, truth = _truth(renderer, [lead, drift, away])
-    objs = {o["id"]: o for o in truth["objects"]}
-    assert objs[1]["v_long"] == pytest.approx(-10.0) and objs[1]["v_lat"] == pytest.approx(0.0)
+    objs = {o.id: o for o in truth.objects}
+    assert objs[1].v_long == pytest.approx(-10.0) and objs[1].v_lat == pytest.approx(0.0)
     # Ego front is L/2 - FWD = 2.0 m ahead of the camera: gap 18 m at 10 m/s.
-    assert objs[1]["ttc"] == pytest.approx(1.8)
-    assert objs[2]["v_long"] == pytest.approx(-5.0) and objs[2]["v_lat"] == pytest.approx(1.0)
+    assert objs[1].ttc == pytest.approx(1.8)
+    assert objs[2].v_long == pytest.approx(-5.0) and objs[2].v_lat == pytest.approx(1.0)
     # Lateral: drift spans x in [-5.25, -3.35], ego [-1.3, 0.7] -> touch at t = 2.05 s;
     # longitudinal overlap (y in [10, 14.6] closing at 5 m/s on ego [-3, 2]) holds from 1.6 s to 3.52 s.
-    assert objs[2]["ttc"] == pytest.approx(2.05)
-    assert objs[3]["ttc"] is None
-    assert objs[2]["lane_rel"] == 0 and truth["ego"]["speed"] == 25.0
+    assert objs[2].ttc == pytest.approx(2.05)
+    assert objs[3].ttc is None
+    assert objs[2].lane_rel == 0 and truth.ego.speed == 25.0
 
 
 def test_visibility_occlusion_matches_solo_render(renderer):
     front = _car(1, 12.0, -LAT + 0.9)
     behind = _car(2, 25.0, -LAT - 0.6)
     frame, truth = _truth(renderer, [front, behind])
-    objs = {o["id"]: o for o in truth["objects"]}
-    assert objs[1]["visibility"] == 1.0
-    assert 0.05 < objs[2]["visibility"] < 0.95
+    objs = {o.id: o for o in truth.objects}
+    assert objs[1].visibility == 1.0
+    assert 0.05 < objs[2].visibility < 0.95
     solo, _ = _truth(renderer, [behind])
     n_solo = int((solo.id_mask == 2).sum())
     assert frame.full_pixels[2] == pytest.approx(n_solo, rel=0.01)
-    assert objs[2]["visibility"] == pytest.approx((frame.id_mask == 2).sum() / n_solo, rel=0.01)
+    assert objs[2].visibility == pytest.approx((frame.id_mask == 2).sum() / n_solo, rel=0.01)
 
 
 def test_visibility_truncation_matches_larger_image(renderer):
     beside = _car(4, 3.0, -4.0 - LAT)            # left lane, close: cut by the left border
     frame, truth = _truth(renderer, [beside])
-    (obj,) = truth["objects"]
-    assert obj["box"][0] == -0.5 and 0.05 < obj["visibility"] < 0.95
+    (obj,) = truth.objects
+    assert obj.box[0] == -0.5 and 0.05 < obj.visibility < 0.95
     # The same camera on a 3x larger sensor (principal point shifted by whole pixels) sees all of it.
     with Renderer(_scenario(3 * 640, 3 * 360)) as big:
         n_big = int((big.render(WorldState(7, 0.0, EGO, (beside,))).id_mask == 4).sum())
@@ -175,7 +176,8 @@ def test_only_visible_vehicles_and_record_is_json(renderer):
     hidden = _car(9, 40.0, -LAT)                  # straight behind the near lead
     lead = _car(1, 6.0, -LAT)
     _, truth = _truth(renderer, [behind_ego, hidden, lead])
-    assert [o["id"] for o in truth["objects"]] == [1]
-    json.dumps(truth)
-    assert set(truth["objects"][0]) >= {"id", "box", "visibility", "d_long", "d_lat", "v_long", "v_lat", "ttc",
-                                        "lane_rel", "corners_cam", "length", "width", "crashed", "name"}
+    assert [o.id for o in truth.objects] == [1]
+    record = json.loads(json.dumps(truth.to_json()))
+    assert FrameTruth.from_json(record) == truth
+    assert list(record["objects"][0]) == ["id", "name", "box", "visibility", "d_long", "d_lat", "v_long", "v_lat",
+                                          "ttc", "lane_rel", "corners_cam", "length", "width", "crashed"]

@@ -13,6 +13,7 @@ import pytest
 
 from harness.scoring import algo
 from harness.scoring.evaluate import horizon_metrics
+from harness.truth import CameraTruth, EgoTruth, FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.cli import main
 from monorarp.horizon import CalibratedHorizon, OnlineHorizon, pitch_std_px, row_std_px
@@ -81,7 +82,7 @@ def test_online_horizon_follows_the_true_row(vibrating_frames):
     for frame, truth in frames:
         r = h.update(frame.image, frame.t)
         assert r.source == "vanishing_point"
-        true = truth["camera"]["horizon_row"]
+        true = truth.camera.horizon_row
         err.append(r.row - true)
         cal_err.append(cam.horizon_row - true)
         std.append(r.std_px)
@@ -214,7 +215,9 @@ def test_interval_stats_counts_and_widths():
 
 
 def test_horizon_metrics_against_truth_rows():
-    truths = [{"frame": 0, "camera": {"horizon_row": 160.0}}, {"frame": 1, "camera": {"horizon_row": 170.0}}]
+    truths = [FrameTruth(frame=k, t=k / 10, ego=EgoTruth(speed=0.0),
+                         camera=CameraTruth(0.0, 0.0, row, 0.0, row - NOMINAL.horizon_row))
+              for k, row in enumerate((160.0, 170.0))]
     results = [FrameResult(0, 0.0, [], [], {}, RiskEstimate(0.0),
                            horizon=HorizonReading(161.0, 1.0, "vanishing_point")),
                FrameResult(1, 0.1, [], [], {}, RiskEstimate(0.0), horizon=HorizonReading(165.0, 1.0, "held"))]

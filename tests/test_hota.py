@@ -153,9 +153,11 @@ def test_evaluate_reports_hota_and_bench_pools_it_like_trackeval(ref):
     from monorarp.types import FrameResult, RiskEstimate, Track
 
     box = [100.0, 100.0, 140.0, 130.0]
-    truths = [{"frame": k, "t": k / 10, "ego": {"speed": 20.0},
-               "objects": [{"id": 1, "box": box, "visibility": 1.0, "d_long": 15.0, "d_lat": 0.0, "v_long": 0.0,
-                            "v_lat": 0.0, "ttc": None}]} for k in range(3)]
+    from harness.truth import FrameTruth
+
+    truths = [FrameTruth.from_json({"frame": k, "t": k / 10, "ego": {"speed": 20.0},
+                                    "objects": [{"id": 1, "box": box, "visibility": 1.0, "d_long": 15.0, "d_lat": 0.0,
+                                                 "v_long": 0.0, "v_lat": 0.0, "ttc": None}]}) for k in range(3)]
     results = [FrameResult(index=k, t=k / 10, detections=[], tracks=[Track(4, tuple(box))], states={},
                            risk=RiskEstimate(0.0, {})) for k in range(3)]
     t = evaluate(truths, results, EvalConfig())[0]["tracking"]

@@ -8,20 +8,22 @@ import numpy as np
 import pytest
 
 from harness.oracle import OracleConfigError, OracleDetector
+from harness.truth import EgoTruth, FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
 
 W, H = 320, 180
 
 
-def _truth(frame: int, n: int = 6) -> dict:
+def _truth(frame: int, n: int = 6) -> FrameTruth:
     rng = np.random.default_rng(frame + 100)
     objs = []
     for i in range(n):
         x1, y1 = rng.uniform(0, 250), rng.uniform(60, 140)
         w, h = rng.uniform(5, 60), rng.uniform(3, 40)
-        objs.append({"id": i + 1, "box": [x1, y1, x1 + w, min(y1 + h, H - 0.5)],
-                     "visibility": float(rng.choice([0.1, 0.29, 0.3, 0.8, 1.0]))})
-    return {"frame": frame, "t": frame / 15, "objects": objs}
+        objs.append(ObjectTruth(id=i + 1, box=(x1, y1, x1 + w, min(y1 + h, H - 0.5)),
+                                visibility=float(rng.choice([0.1, 0.29, 0.3, 0.8, 1.0])),
+                                d_long=20.0, d_lat=0.0, v_long=0.0, v_lat=0.0))
+    return FrameTruth(frame=frame, t=frame / 15, ego=EgoTruth(speed=20.0), objects=tuple(objs))
 
 
 def _img() -> np.ndarray:
@@ -35,8 +37,7 @@ def test_noise_free_boxes_are_exactly_the_visible_ground_truth():
         img = _img()
         det.set_truth(truth, img)
         boxes = [d.box for d in det.detect(img)]
-        want = [tuple(o["box"]) for o in truth["objects"]
-                if o["visibility"] >= 0.3 and o["box"][3] - o["box"][1] >= 4.0]
+        want = [o.box for o in truth.objects if o.visibility >= 0.3 and o.box[3] - o.box[1] >= 4.0]
         assert boxes == want
 
 
@@ -68,7 +69,7 @@ def test_noise_statistics_match_settings():
     diffs = []
     for tr in truths:
         got = np.array([d.box for d in det.detections_for(tr, (1000, 1000))])
-        diffs.append(got - np.array([o["box"] for o in tr["objects"]]))
+        diffs.append(got - np.array([o.box for o in tr.objects]))
     d = np.concatenate(diffs).ravel()
     assert abs(d.mean()) < 0.1 and d.std() == pytest.approx(2.0, rel=0.05)
 
@@ -78,7 +79,7 @@ def test_noise_statistics_match_settings():
 
     cam = CameraModel.from_fov(W, H, 70.0, 1.3, pitch_rad=np.radians(2))
     fp = OracleDetector(false_positives=1.5, seed=3, camera=cam)
-    empty = [{"frame": f, "t": 0.0, "objects": []} for f in range(2000)]
+    empty = [FrameTruth(frame=f, t=0.0, ego=EgoTruth(speed=20.0)) for f in range(2000)]
     boxes = [d.box for tr in empty for d in fp.detections_for(tr, (W, H))]
     assert len(boxes) / 2000 == pytest.approx(1.5, rel=0.06)  # Poisson mean; sd of the estimate 1.8 %
     b = np.array(boxes)

@@ -1,4 +1,4 @@
-"""harness.output: strict JSON, atomic files and atomic output directories."""
+"""monorarp.io: strict JSON, atomic files and atomic output directories."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from harness.output import JsonlWriter, OutputError, atomic_output_dir, dumps, write_json_atomic
+from monorarp.io import JsonlWriter, OutputError, atomic_output_dir, dumps, write_json_atomic
 
 
 def _strict_loads(text: str):

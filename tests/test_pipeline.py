@@ -12,7 +12,7 @@ from monorarp.pipeline import Pipeline, PipelineConfig, run_sync, run_threaded
 from monorarp import registry
 from monorarp.risk import TTCRiskEstimator
 from monorarp.state import StateEstimator
-from monorarp.tracking import ParticleTracker
+from monorarp.tracking.particle import ParticleTracker
 from monorarp.types import Detection, Frame, RiskEstimate
 
 CAM = CameraModel.from_fov(320, 180, 60.0, 1.3)

@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from harness.render import Renderer
 from harness.render.geometry import vehicle_pose_world
 from harness.render.meshes import vehicle_trimesh
+from harness.render.renderer import Renderer
 from harness.render.renderer import SKY_RGB
 from harness.scenario import parse_scenario
 from harness.world import VehicleState, WorldState

@@ -22,11 +22,11 @@ from harness.run import run_scenario
 from harness.run_outputs import OUTPUT_NAMES
 from harness.scenario import parse_scenario
 from harness.scoring.records import read_csv
-from harness.video import read_video
 from monorarp.camera import CameraModel
 from monorarp.cli import main
 from monorarp import registry
 from monorarp.state import StateEstimator
+from monorarp.video.writer import read_video
 
 N_FRAMES = 12
 SCENARIO = {

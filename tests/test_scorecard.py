@@ -13,6 +13,7 @@ from harness.scorecard import score
 from harness.scorecard.protocols import KMH, ProtocolError, contact_time, expand_protocol, load_protocol
 from harness.scoring import algo
 from harness.scoring.warnings import warning_metrics
+from harness.truth import FrameTruth
 from monorarp.types import FrameResult, ObjectState, RiskEstimate, Track, WarningState
 
 FCW = Path(__file__).resolve().parents[1] / "scenarios" / "fcw"
@@ -108,9 +109,10 @@ def test_pooled_risk_labels_by_horizon():
 
 
 def _frame(k, ttc_gt=None, active=False, episode=None, crashed=False, d_lat=0.0):
-    truth = {"frame": k, "t": k / 10, "ego": {"speed": 20.0, "crashed": crashed},
-             "objects": [{"id": 5, "box": [100, 100, 140, 130], "ttc": ttc_gt, "d_lat": d_lat, "d_long": 20.0,
-                          "v_lat": 0.0, "v_long": -5.0, "lane_rel": 0}]}
+    truth = FrameTruth.from_json({"frame": k, "t": k / 10, "ego": {"speed": 20.0, "crashed": crashed},
+                                  "objects": [{"id": 5, "box": [100, 100, 140, 130], "visibility": 1.0, "ttc": ttc_gt,
+                                               "d_lat": d_lat, "d_long": 20.0, "v_lat": 0.0, "v_long": -5.0,
+                                               "lane_rel": 0}]})
     res = FrameResult(index=k, t=k / 10, detections=[], tracks=[Track(2, (100, 100, 140, 130))],
                       states={2: ObjectState(2, d_lat, 20.0, 0.0, -5.0)}, risk=RiskEstimate(0.0),
                       warning=WarningState(active=active, track_id=2 if active else None, ttc=1.5 if active else None,

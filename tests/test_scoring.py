@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import math
@@ -10,11 +11,13 @@ import numpy as np
 import pytest
 
 from harness.scoring import algo
-from harness.scoring.evaluate import EvalConfig, evaluate, jsonable, write_metrics
+from harness.scoring.evaluate import EvalConfig, evaluate, write_metrics
 from harness.scoring.match import iou_matrix, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import read_csv, write_csv
+from harness.truth import EgoTruth, FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
+from monorarp.io import to_jsonable
 from monorarp.types import Detection, FrameResult, ObjectState, RiskEstimate, Track
 
 
@@ -128,7 +131,7 @@ def test_warning_classification_by_hand():
     assert algo.warnings_from_ttc([2.0])[0] == False  # noqa: E712 - strictly below the threshold
     none = algo.warning_classification([None, 5.0], [None, 3.0])
     assert math.isnan(none["precision"]) and math.isnan(none["recall"])
-    assert jsonable(none)["precision"] is None
+    assert to_jsonable(none)["precision"] is None
 
 
 def test_precision_recall_counts():
@@ -168,12 +171,12 @@ def test_mot_ignored_objects_are_neither_misses_nor_false_positives():
 
 # ---------------------------------------------------------------- evaluation
 def _truth(frame, objects):
-    return {"frame": frame, "t": frame / 10, "ego": {"speed": 20.0}, "objects": objects}
+    return FrameTruth(frame=frame, t=frame / 10, ego=EgoTruth(speed=20.0), objects=tuple(objects))
 
 
 def _obj(i, box, d_long, vis=1.0, ttc=None, v_long=-1.0):
-    return {"id": i, "box": list(box), "visibility": vis, "d_long": d_long, "d_lat": 0.5, "v_long": v_long,
-            "v_lat": 0.0, "ttc": ttc}
+    return ObjectTruth(id=i, box=tuple(box), visibility=vis, d_long=d_long, d_lat=0.5, v_long=v_long, v_lat=0.0,
+                       ttc=ttc)
 
 
 def _result(frame, tracks, states, ttc, dets):
@@ -287,8 +290,9 @@ def test_brier_by_hand_and_ttc_mapping():
 
 
 def _risk_truth(frame, fps=10.0, ego_crashed=False, objects=()):
-    return {"frame": frame, "t": frame / fps, "ego": {"speed": 20.0, "crashed": ego_crashed},
-            "objects": [dict(o) for o in objects]}
+    base = {"box": (0, 0, 1, 1), "visibility": 1.0, "d_long": 30.0, "d_lat": 0.0, "v_long": -1.0, "v_lat": 0.0}
+    return FrameTruth(frame=frame, t=frame / fps, ego=EgoTruth(speed=20.0, crashed=ego_crashed),
+                      objects=tuple(ObjectTruth(**{**base, **o}) for o in objects))
 
 
 def test_risk_labels_from_a_crash_and_a_near_miss_with_exclusion_at_the_end():
@@ -308,7 +312,7 @@ def test_risk_labels_from_a_crash_and_a_near_miss_with_exclusion_at_the_end():
     expected = [0, 1, 1, 1, 1, 0, 0, 0, 1, 1, 1, 1, 1, 1]
     assert labels.tolist() == expected
     # Without the crash, the last 3 frames' windows run past the end: excluded, not negative.
-    truths2 = [dict(t, ego={"speed": 20.0, "crashed": False}) for t in truths]
+    truths2 = [dataclasses.replace(t, ego=EgoTruth(speed=20.0, crashed=False)) for t in truths]
     _, labels2 = risk_labels(truths2, cfg)
     assert labels2[:10].tolist() == [0, 1, 1, 1, 1, 0, 0, 0, 0, 0]
     assert np.isnan(labels2[11:]).all() and labels2[10] == 0

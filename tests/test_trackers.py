@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from monorarp.registry import create
-from monorarp.tracking import ByteTracker, OpenCVMultiTracker, SortTracker
+from monorarp.tracking.bytetrack import ByteTracker
+from monorarp.tracking.opencv import OpenCVMultiTracker
+from monorarp.tracking.sort import SortTracker
 from monorarp.tracking.kalman_box import BoxKalman, boxes_to_z, x_to_boxes
 from monorarp.tracking.opencv import box_to_rect, inside_fraction, rect_to_box
 from monorarp.types import Detection

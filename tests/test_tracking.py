@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from monorarp.registry import create
-from monorarp.tracking import ParticleTracker
+from monorarp.tracking.particle import ParticleTracker
 from monorarp.tracking.association import assign, associate_iou, iou_matrix
 from monorarp.tracking.particle import systematic_resample
 from monorarp.types import Detection

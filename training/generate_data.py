@@ -35,9 +35,9 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
-from harness.render import Renderer  # noqa: E402
+from harness.render.renderer import Renderer  # noqa: E402
 from harness.scenario import ScenarioError, parse_scenario  # noqa: E402
-from harness.simulation import simulate  # noqa: E402
+from harness.simulation.simulator import simulate  # noqa: E402
 from monorarp.detection.fovea import Fovea  # noqa: E402
 from monorarp.detection.letterbox import Letterbox  # noqa: E402
 

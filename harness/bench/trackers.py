@@ -31,6 +31,7 @@ import numpy as np
 from harness.scenario import Scenario, load_scenario
 from harness.scoring.evaluate import EvalConfig, evaluate, state_metrics
 from harness.scoring.records import ObjectRecord
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
 from monorarp.pipeline import ComponentConfig, PipelineConfig
@@ -62,7 +63,7 @@ class CachedSequence:
     name: str
     camera: CameraModel
     frames: list[Frame]
-    truths: list[dict]
+    truths: list[FrameTruth]
     detections: list[tuple[Detection, ...]]
     detector_ms: np.ndarray
 
@@ -318,12 +319,11 @@ def run_bench(config: BenchConfig = BenchConfig(), out_dir: str | Path | None = 
     check_trackers(config.trackers)              # the cheapest refusal first
     if out_dir is None:
         return bench_trackers(config, log)
-    from harness.output import atomic_output_dir, write_json_atomic
-    from harness.scoring.evaluate import jsonable
+    from monorarp.io import atomic_output_dir, to_jsonable, write_json_atomic
 
     with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES) as tmp:
         result = bench_trackers(config, log)
-        clean = jsonable(result)
+        clean = to_jsonable(result)
         write_json_atomic(tmp / JSON_NAME, clean)
         (tmp / MD_NAME).write_text(table_iii(clean) + "\n")
     return result

@@ -76,10 +76,10 @@ def render_scenario(scenario, out: str | Path, n_frames: int, *, crf: int = 18,
     from tqdm import tqdm
 
     from harness.ground_truth import frame_truth
-    from harness.output import JsonlWriter, atomic_output_dir, write_json_atomic
-    from harness.render import Renderer
-    from harness.simulation import simulate
-    from harness.video import VideoWriter
+    from harness.render.renderer import Renderer
+    from harness.simulation.simulator import simulate
+    from monorarp.io import JsonlWriter, atomic_output_dir, write_json_atomic
+    from monorarp.video.writer import VideoWriter
 
     if progress is None:
         progress = sys.stderr.isatty()
@@ -104,8 +104,8 @@ def render_scenario(scenario, out: str | Path, n_frames: int, *, crf: int = 18,
                         rendered = renderer.render(world)
                         video.write(rendered.image)
                         record = frame_truth(world, camera, rendered)
-                        truth.write(record)
-                        seen.update(int(o["id"]) for o in record["objects"])
+                        truth.write(record.to_json())
+                        seen.update(o.id for o in record.objects)
                         frames += 1
     elapsed = time.perf_counter() - start
     return {"frames": frames, "objects": len(seen),

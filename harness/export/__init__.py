@@ -9,8 +9,3 @@ field's formats (KITTI object, KITTI tracking, MOTChallenge), for ``monorarp exp
 
 Nothing inside :mod:`monorarp` knows about these formats.
 """
-
-from harness.export.exporter import FORMATS, export  # noqa: F401
-from harness.export.source import ExportInputError, ExportSource, open_source  # noqa: F401
-
-__all__ = ["FORMATS", "ExportInputError", "ExportSource", "export", "open_source"]

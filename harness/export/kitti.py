@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from harness.export import geometry as geo
+from harness.truth import FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
 
 SEQUENCE = "0000"
@@ -25,22 +26,22 @@ TRACKING_DIRS = ("image_02", "label_02", "calib")
 
 
 # ------------------------------------------------------------------------------ text
-def label_fields(objects: Sequence[Mapping], camera: CameraModel) -> list[dict]:
+def label_fields(objects: Sequence[ObjectTruth], camera: CameraModel) -> list[dict]:
     """The KITTI fields of each ground-truth object (dicts in object order; numbers unrounded)."""
     if not objects:
         return []
-    corners = np.array([o["corners_cam"] for o in objects], dtype=float)
+    corners = np.array([o.corners_cam for o in objects], dtype=float)
     box = geo.kitti_box(corners)
     trunc = geo.truncation(geo.projected_extent(corners, camera), camera.width, camera.height)
-    occ = geo.occlusion([o["visibility"] for o in objects], trunc)
+    occ = geo.occlusion([o.visibility for o in objects], trunc)
     occ_level = geo.levels(occ, geo.OCCLUSION_LEVELS)
     trunc_level = geo.levels(trunc, geo.TRUNCATION_LEVELS)
     out = []
     for k, o in enumerate(objects):
-        out.append({"id": int(o["id"]), "type": geo.kitti_type(o["length"], o["width"]),
+        out.append({"id": o.id, "type": geo.kitti_type(o.length, o.width),
                     "truncated": float(trunc[k]), "truncated_level": int(trunc_level[k]),
                     "occluded": int(occ_level[k]), "alpha": float(box["alpha"][k]),
-                    "box": [float(b) for b in o["box"]],
+                    "box": [float(b) for b in o.box],
                     "dimensions": [float(box["h"][k]), float(box["w"][k]), float(box["l"][k])],
                     "location": [float(v) for v in box["location"][k]],
                     "rotation_y": float(box["rotation_y"][k])})
@@ -99,10 +100,10 @@ class KittiObjectWriter:
         self._calib = calib_text(camera)
         self.frames = self.objects = 0
 
-    def add(self, index: int, image: np.ndarray, truth: Mapping, detections=None) -> None:
+    def add(self, index: int, image: np.ndarray, truth: FrameTruth, detections=None) -> None:
         stem = f"{index:06d}"
         _write_png(self.root / "image_2" / f"{stem}.png", image)
-        fields = label_fields(truth["objects"], self.camera)
+        fields = label_fields(truth.objects, self.camera)
         (self.root / "label_2" / f"{stem}.txt").write_text("".join(object_line(f) + "\n" for f in fields))
         (self.root / "calib" / f"{stem}.txt").write_text(self._calib)
         self.frames += 1
@@ -126,9 +127,9 @@ class KittiTrackingWriter:
         self.frames = self.objects = 0
         self._last = -1
 
-    def add(self, index: int, image: np.ndarray, truth: Mapping, detections=None) -> None:
+    def add(self, index: int, image: np.ndarray, truth: FrameTruth, detections=None) -> None:
         _write_png(self.root / "image_02" / SEQUENCE / f"{index:06d}.png", image)
-        for f in label_fields(truth["objects"], self.camera):
+        for f in label_fields(truth.objects, self.camera):
             self._labels.write(tracking_line(index, f) + "\n")
             self.objects += 1
         self.frames += 1

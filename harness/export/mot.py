@@ -24,12 +24,13 @@ sequences with it, run it with ``BENCHMARK: MOT15`` or ``DO_PREPROC: False`` (as
 from __future__ import annotations
 
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from harness.truth import FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
 
 CAR_CLASS = 3
@@ -57,9 +58,9 @@ def mot_to_box(left: float, top: float, width: float, height: float) -> tuple[fl
     return x1, y1, x1 + float(width), y1 + float(height)
 
 
-def gt_line(frame: int, obj: Mapping, counted: bool) -> str:
-    left, top, w, h = box_to_mot(obj["box"])
-    return f"{frame:d},{int(obj['id']):d},{left:.2f},{top:.2f},{w:.2f},{h:.2f},{int(counted):d},{CAR_CLASS:d},{float(obj['visibility']):.4f}"
+def gt_line(frame: int, obj: ObjectTruth, counted: bool) -> str:
+    left, top, w, h = box_to_mot(obj.box)
+    return f"{frame:d},{obj.id:d},{left:.2f},{top:.2f},{w:.2f},{h:.2f},{int(counted):d},{CAR_CLASS:d},{obj.visibility:.4f}"
 
 
 def det_line(frame: int, box: Sequence[float], score: float) -> str:
@@ -93,14 +94,14 @@ class MotWriter:
         self._eval = EvalConfig()
         self.frames = self.objects = self.detections = 0
 
-    def add(self, index: int, image: np.ndarray, truth: Mapping, detections=None) -> None:
+    def add(self, index: int, image: np.ndarray, truth: FrameTruth, detections=None) -> None:
         from harness.scoring.evaluate import counted_mask
 
         frame = index + 1
         path = self.seq / "img1" / f"{frame:06d}{IMAGE_EXT}"
         if not cv2.imwrite(str(path), image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY]):
             raise OSError(f"{path}: cannot write image")
-        objs = truth["objects"]
+        objs = truth.objects
         for o, c in zip(objs, counted_mask(objs, self._eval)):
             self._gt.write(gt_line(frame, o, bool(c)) + "\n")
         self.objects += len(objs)

@@ -15,11 +15,11 @@ Everything the export needs is checked by :func:`open_source` before any output 
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
 from monorarp.types import Frame
@@ -45,7 +45,7 @@ class ExportSource:
     fps: float
     n_frames: int
     origin: str                  # one line for the summary: where the pixels come from
-    frames: Iterator[tuple[Frame, dict]]
+    frames: Iterator[tuple[Frame, FrameTruth]]
 
 
 def open_source(path: str | Path, n_frames: int | None = None) -> ExportSource:
@@ -84,7 +84,7 @@ def _scenario(path: Path, n_frames: int | None) -> ExportSource:
                         origin=f"rendered from {path}", frames=frames)
 
 
-def _read_truth(path: Path) -> list[dict]:
+def _read_truth(path: Path) -> list[FrameTruth]:
     truths = []
     try:
         with path.open(encoding="utf-8") as f:
@@ -102,18 +102,22 @@ def _read_truth(path: Path) -> list[dict]:
                     if missing:
                         raise ExportInputError(f"{path}: line {k}: an object lacks {', '.join(missing)} "
                                                "(written by an older version? render the scenario again)")
-                truths.append(rec)
+                try:
+                    truths.append(FrameTruth.from_json(rec))
+                except (KeyError, TypeError, ValueError) as e:
+                    raise ExportInputError(f"{path}: line {k}: not a ground-truth frame record "
+                                           f"({type(e).__name__}: {e})") from None
     except OSError as e:
         raise ExportInputError(f"{path}: cannot read ({e.strerror or e})") from None
     except UnicodeDecodeError:
         raise ExportInputError(f"{path}: not UTF-8 text") from None
     for k, rec in enumerate(truths):
-        if int(rec["frame"]) != k:
-            raise ExportInputError(f"{path}: record {k + 1} is frame {rec['frame']}, expected {k}")
+        if rec.frame != k:
+            raise ExportInputError(f"{path}: record {k + 1} is frame {rec.frame}, expected {k}")
     return truths
 
 
-def _run_fps(run_dir: Path, truths: list[dict]) -> float:
+def _run_fps(run_dir: Path, truths: list[FrameTruth]) -> float:
     metrics = run_dir / METRICS_NAME
     if metrics.is_file():
         try:
@@ -123,7 +127,7 @@ def _run_fps(run_dir: Path, truths: list[dict]) -> float:
         except (OSError, ValueError, AttributeError):
             pass
     if len(truths) >= 2:
-        dt = float(truths[1]["t"]) - float(truths[0]["t"])
+        dt = truths[1].t - truths[0].t
         if dt > 0:
             return 1.0 / dt
     return float("nan")
@@ -142,7 +146,7 @@ def _run_name(run_dir: Path) -> str:
 
 
 def _run_dir(run_dir: Path, n_frames: int | None) -> ExportSource:
-    from harness.video import read_video
+    from monorarp.video.writer import read_video
 
     missing = [n for n in (CAMERA_NAME, GROUND_TRUTH_NAME) if not (run_dir / n).is_file()]
     if missing:
@@ -170,12 +174,11 @@ def _run_dir(run_dir: Path, n_frames: int | None) -> ExportSource:
         raise ExportInputError(f"{video}: holds {n_video} frames, fewer than the {n} to export")
     fps = _run_fps(run_dir, truths)
 
-    def gen() -> Iterator[tuple[Frame, dict]]:
+    def gen() -> Iterator[tuple[Frame, FrameTruth]]:
         decoded = 0
         for vf, truth in zip(read_video(video, size=(camera.width, camera.height)), truths[:n]):
             decoded += 1
-            t = float(truth["t"]) if truth.get("t") is not None else (vf.index / fps if math.isfinite(fps) else 0.0)
-            yield Frame(index=int(truth["frame"]), t=t, image=vf.image), truth
+            yield Frame(index=truth.frame, t=truth.t, image=vf.image), truth
         if decoded < n:
             raise ExportInputError(f"{video}: decoded only {decoded} of {n} frames")
 

@@ -5,7 +5,8 @@ Frames: an object dataset's images are independent (each is its own one-frame se
 stage is reset before it, and each detection is its own track, so no tracker runs); a tracking
 sequence's frames run in order through the tracker, at ``t = frame / fps`` (KITTI: 10 Hz).
 
-Truth per frame (the keys :func:`harness.scoring.evaluate.evaluate` reads): each label's box,
+Truth per frame (:class:`KittiFrameTruth`, the :class:`~harness.truth.FrameTruth` that
+:func:`harness.scoring.evaluate.evaluate` reads, plus the label's KITTI fields): each label's box,
 ``d_long``/``d_lat`` from its location, size and yaw (:mod:`harness.kitti_eval.geometry`); on
 tracking sequences ``v_long``/``v_lat`` = finite differences of those over the frame times of the
 same track id (central, one-sided at a track's ends); no TTC or ego speed (null in ``metrics.json``).
@@ -42,6 +43,7 @@ from harness.kitti_eval.reader import Dataset, KittiInputError, Sample
 from harness.scoring import kitti_ap
 from harness.scoring.evaluate import EvalConfig, evaluate
 from harness.scoring.records import COLUMNS, _cell
+from harness.truth import EgoTruth, FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
 from monorarp.types import Detection, Frame, FrameResult, RiskEstimate, Track, WarningState
@@ -100,9 +102,27 @@ def is_counted(sample_kind: str, types: list[str], box: np.ndarray, occluded: np
     return vehicle & geo.passes(box, occluded, truncated, "moderate")
 
 
+@dataclass(frozen=True)
+class KittiObjectTruth(ObjectTruth):
+    """A label as scored truth, with its KITTI fields (``label``: the label file and line)."""
+
+    type: str = ""
+    truncated: float = 0.0
+    occluded: int = 0
+    difficulty: str = ""
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class KittiFrameTruth(FrameTruth):
+    """A frame's labels as scored truth, with the sample's name."""
+
+    sample: str = ""
+
+
 def truth_record(sample: Sample, kind: str, camera: CameraModel, offset: np.ndarray, frame: int, t: float,
-                 id_base: int) -> dict:
-    """The frame's truth dict in :func:`harness.ground_truth.frame_truth`'s shape (plus KITTI fields)."""
+                 id_base: int) -> KittiFrameTruth:
+    """The frame's truth: no visibility (the ``counted`` flag replaces it), velocity, TTC or ego speed."""
     lab = sample.labels
     n = len(lab)
     d_long = np.full(n, np.nan)
@@ -117,30 +137,34 @@ def truth_record(sample: Sample, kind: str, camera: CameraModel, offset: np.ndar
     objects = []
     for k in range(n):
         tid = int(lab.track_id[k])
-        objects.append({"id": id_base + tid if tid >= 0 else -(id_base + k + 1), "box": lab.box[k].tolist(),
-                        "visibility": float("nan"), "counted": bool(counted[k]),
-                        "d_long": float(d_long[k]), "d_lat": float(d_lat[k]), "v_long": None, "v_lat": None,
-                        "ttc": None, "type": lab.type[k], "truncated": float(lab.truncated[k]),
-                        "occluded": int(lab.occluded[k]), "difficulty": difficulty[k], "label": lab.source[k]})
-    return {"frame": frame, "t": t, "ego": {"speed": float("nan"), "crashed": False}, "objects": objects,
-            "sample": sample.name}
+        objects.append(KittiObjectTruth(
+            id=id_base + tid if tid >= 0 else -(id_base + k + 1), box=tuple(lab.box[k].tolist()),
+            visibility=float("nan"), counted=bool(counted[k]), d_long=float(d_long[k]), d_lat=float(d_lat[k]),
+            v_long=None, v_lat=None, ttc=None, type=lab.type[k], truncated=float(lab.truncated[k]),
+            occluded=int(lab.occluded[k]), difficulty=difficulty[k], label=lab.source[k]))
+    return KittiFrameTruth(frame=frame, t=t, ego=EgoTruth(speed=float("nan"), crashed=False),
+                           objects=tuple(objects), sample=sample.name)
 
 
-def add_velocities(truths: list[dict]) -> None:
-    """Fill ``v_long``/``v_lat`` (m/s) of tracked labels: finite differences of ``d_long``/``d_lat`` over the
-    frame times of the same track id in consecutive frames (:func:`geometry.finite_difference`)."""
-    tracks: dict[int, list[tuple[int, float, dict]]] = {}
-    for tr in truths:
-        for o in tr["objects"]:
-            if o["id"] >= 0 and np.isfinite(o["d_long"]):
-                tracks.setdefault(o["id"], []).append((tr["frame"], tr["t"], o))
+def add_velocities(truths: list[KittiFrameTruth]) -> list[KittiFrameTruth]:
+    """``truths`` with ``v_long``/``v_lat`` (m/s) of tracked labels filled: finite differences of
+    ``d_long``/``d_lat`` over the frame times of the same track id in consecutive frames
+    (:func:`geometry.finite_difference`)."""
+    tracks: dict[int, list[tuple[int, int]]] = {}          # track id -> (frame k, object j)
+    for k, tr in enumerate(truths):
+        for j, o in enumerate(tr.objects):
+            if o.id >= 0 and np.isfinite(o.d_long):
+                tracks.setdefault(o.id, []).append((k, j))
+    filled: dict[tuple[int, int], dict[str, float | None]] = {}
     for rows in tracks.values():
-        f = np.array([r[0] for r in rows])
-        t = np.array([r[1] for r in rows])
+        f = np.array([truths[k].frame for k, _ in rows])
+        t = np.array([truths[k].t for k, _ in rows])
         for key, src in (("v_long", "d_long"), ("v_lat", "d_lat")):
-            v = geo.finite_difference(f, t, np.array([r[2][src] for r in rows]))
-            for r, val in zip(rows, v):
-                r[2][key] = float(val) if np.isfinite(val) else None
+            v = geo.finite_difference(f, t, np.array([getattr(truths[k].objects[j], src) for k, j in rows]))
+            for kj, val in zip(rows, v):
+                filled.setdefault(kj, {})[key] = float(val) if np.isfinite(val) else None
+    return [replace(tr, objects=tuple(replace(o, **filled[(k, j)]) if (k, j) in filled else o
+                                      for j, o in enumerate(tr.objects))) for k, tr in enumerate(truths)]
 
 
 # ------------------------------------------------------------------------------ cameras
@@ -266,14 +290,14 @@ class _Pipelines:
 
 
 # ---------------------------------------------------------------------------------- run
-def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[FrameResult], dict]:
+def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[KittiFrameTruth], list[FrameResult], dict]:
     """Run the pipeline over ``ds``; returns truths, results (global frame indices) and run facts."""
     manifest = read_manifest(ds.root)
     fps = opts.fps or (manifest.get("fps") if isinstance(manifest.get("fps"), (int, float))
                        and manifest.get("fps", 0) > 0 else None) or DEFAULT_FPS
     cameras = Cameras(opts, manifest)
     pipes = _Pipelines(opts, ds.kind)
-    truths: list[dict] = []
+    truths: list[KittiFrameTruth] = []
     results: list[FrameResult] = []
     infos: list[dict] = []
     limit = opts.frames if opts.frames is not None else ds.n_frames
@@ -302,7 +326,7 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[F
         if starts:
             first_size, seq_start = (w, h), sample.frame
             if truths:
-                t_offset = truths[-1]["t"] + 1.0          # a gap between sequences
+                t_offset = truths[-1].t + 1.0          # a gap between sequences
         elif (w, h) != first_size:
             raise KittiInputError(f"{sample.image}: {w}x{h} image, but the sequence's first image is "
                                   f"{first_size[0]}x{first_size[1]} (one calibration per sequence)")
@@ -317,8 +341,8 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[F
             p.reset()
             pipe = p
         pipes.queue.queued = dets if dets is not None else [
-            Detection(box=tuple(o["box"]), score=1.0, label=o["type"].lower())
-            for o in truth["objects"] if o["type"] in VEHICLE_TYPES]
+            Detection(box=o.box, score=1.0, label=o.type.lower())
+            for o in truth.objects if o.type in VEHICLE_TYPES]
         t0 = time.perf_counter()
         res = p.process(Frame(index=k, t=t, image=image))
         pipeline_s += time.perf_counter() - t0 + det_ms / 1e3
@@ -329,29 +353,29 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[dict], list[F
         truths.append(truth)
         results.append(_offset_ids(res, id_base))
     if ds.kind == "tracking":
-        add_velocities(truths)
+        truths = add_velocities(truths)
     facts = {"fps": fps, "pipeline_s": pipeline_s, "camera": infos, "components": pipes.describe()}
     if pipes.cache:
         facts["camera_model"] = next(iter(pipes.cache)).to_dict()
     return truths, results, facts
 
 
-def ap_inputs(truths: list[dict], results: list[FrameResult]) -> tuple[list, list]:
+def ap_inputs(truths: list[KittiFrameTruth], results: list[FrameResult]) -> tuple[list, list]:
     """Per-image :class:`~harness.scoring.kitti_ap.ImageTruth` / ``ImageDetections`` of the detector's output."""
     tr, de = [], []
     for truth, res in zip(truths, results):
-        objs = truth["objects"]
-        tr.append(kitti_ap.ImageTruth(types=[o["type"] for o in objs],
-                                      boxes=np.array([o["box"] for o in objs], dtype=float).reshape(-1, 4),
-                                      occluded=np.array([o["occluded"] for o in objs], dtype=int),
-                                      truncated=np.array([o["truncated"] for o in objs], dtype=float)))
+        objs = truth.objects
+        tr.append(kitti_ap.ImageTruth(types=[o.type for o in objs],
+                                      boxes=np.array([o.box for o in objs], dtype=float).reshape(-1, 4),
+                                      occluded=np.array([o.occluded for o in objs], dtype=int),
+                                      truncated=np.array([o.truncated for o in objs], dtype=float)))
         de.append(kitti_ap.ImageDetections(boxes=np.array([d.box for d in res.detections], dtype=float).reshape(-1, 4),
                                            scores=np.array([d.score for d in res.detections], dtype=float),
                                            labels=[d.label for d in res.detections]))
     return tr, de
 
 
-def score(ds: Dataset, truths: list[dict], results: list[FrameResult], facts: dict, opts: KittiEvalOptions,
+def score(ds: Dataset, truths: list[KittiFrameTruth], results: list[FrameResult], facts: dict, opts: KittiEvalOptions,
           wall_s: float) -> tuple[dict, list[dict]]:
     """``(metrics, per-object rows)``."""
     cfg = EvalConfig()
@@ -363,8 +387,8 @@ def score(ds: Dataset, truths: list[dict], results: list[FrameResult], facts: di
     metrics["kitti_ap"] = kitti_ap.kitti_ap(tr, de, "Car")
     metrics["dataset"] = {
         "root": str(ds.root), "kind": ds.kind, "frames": len(truths),
-        "sequences": len({t["sample"].split("/")[0] for t in truths}) if ds.kind == "tracking" else None,
-        "labels": sum(len(t["objects"]) for t in truths),
+        "sequences": len({t.sample.split("/")[0] for t in truths}) if ds.kind == "tracking" else None,
+        "labels": sum(len(t.objects) for t in truths),
         "counted_rule": ("Car/Van/Truck, box height > 25 px, occluded <= 1, truncated <= 0.30, d_long <= 80 m"
                          if ds.kind == "object" else
                          "Car/Van/Truck, box height > 25 px, occluded <= 2, truncation level 0, d_long <= 80 m"),
@@ -377,17 +401,17 @@ def score(ds: Dataset, truths: list[dict], results: list[FrameResult], facts: di
     return metrics, rows
 
 
-def per_object_rows(truths: list[dict], records) -> list[dict]:
+def per_object_rows(truths: list[KittiFrameTruth], records) -> list[dict]:
     """The run's per-object records with the KITTI columns of each label beside them."""
-    by_key = {(t["frame"], o["id"]): (t, o) for t in truths for o in t["objects"]}
-    samples = {t["frame"]: t["sample"] for t in truths}
+    by_key = {(t.frame, o.id): o for t in truths for o in t.objects}
+    samples = {t.frame: t.sample for t in truths}
     rows = []
     for r in records:
         d = {c: getattr(r, c) for c in COLUMNS}
-        t_o = by_key.get((r.frame, r.gt_id)) if r.gt_id is not None else None
-        o = t_o[1] if t_o else {}
-        d.update({"sample": samples.get(r.frame, ""), "type": o.get("type", ""), "truncated": o.get("truncated"),
-                  "occluded": o.get("occluded"), "difficulty": o.get("difficulty", ""), "label": o.get("label", "")})
+        o = by_key.get((r.frame, r.gt_id)) if r.gt_id is not None else None
+        d.update({"sample": samples.get(r.frame, ""), "type": o.type if o else "",
+                  "truncated": o.truncated if o else None, "occluded": o.occluded if o else None,
+                  "difficulty": o.difficulty if o else "", "label": o.label if o else ""})
         rows.append(d)
     return rows
 
@@ -403,8 +427,8 @@ def write_rows(rows: list[dict], path: Path) -> None:
 
 def evaluate_kitti(ds: Dataset, opts: KittiEvalOptions, out: str | Path) -> dict:
     """Run, score and write ``OUT/metrics.json`` and ``OUT/per_object.csv`` (all or nothing); returns metrics."""
-    from harness.output import atomic_output_dir
     from harness.scoring.evaluate import write_metrics
+    from monorarp.io import atomic_output_dir
 
     start = time.perf_counter()
     with atomic_output_dir(out, owned_names=OUTPUT_NAMES) as tmp:

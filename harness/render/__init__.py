@@ -1,9 +1,5 @@
-"""Offscreen dashcam renderer (pyrender + trimesh over EGL; no GPU needed)."""
+"""Offscreen dashcam renderer (pyrender + trimesh over EGL; no GPU needed): :mod:`.renderer`."""
 
 import os
 
-os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-
-from harness.render.renderer import RenderedFrame, Renderer  # noqa: E402
-
-__all__ = ["Renderer", "RenderedFrame"]
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")    # before any module of the package imports pyrender

@@ -125,10 +125,10 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
 
 def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., Executor] = make_executor) -> dict:
     """Run every trial not already finished, then score and write ``scorecard.json`` and ``report.html``."""
-    from harness.sweep.orchestrate import _progress
-    from harness.output import write_json_atomic
-    from harness.sweep.summary import write_text_atomic
     from harness.scorecard.report import render_scorecard
+    from harness.sweep.orchestrate import _progress
+    from harness.sweep.summary import write_text_atomic
+    from monorarp.io import write_json_atomic
 
     out = Path(out)
     trials, tasks = build_tasks(opts)
@@ -245,7 +245,7 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
         "risk": score.pooled_risk(risk_runs) if risk_runs else None,
         "failed_runs": failed,
     }
-    from harness.output import to_jsonable
+    from monorarp.io import to_jsonable
     return to_jsonable(card), risk_runs
 
 

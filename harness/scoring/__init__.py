@@ -4,7 +4,3 @@
 ``records`` (per-object rows), ``evaluate`` (orchestration, ``metrics.json``),
 ``tables`` (printable summary and the paper's Table II).
 """
-
-from harness.scoring.evaluate import EvalConfig, evaluate, jsonable, write_metrics
-
-__all__ = ["EvalConfig", "evaluate", "jsonable", "write_metrics"]

@@ -15,13 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from harness.output import to_jsonable, write_json_atomic
 from harness.scoring import algo
 from harness.scoring.match import MIN_IOU, as_boxes, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import ObjectRecord, _cell
 from harness.scoring.warnings import warning_metrics
+from harness.truth import FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
+from monorarp.io import write_json_atomic
 from monorarp.types import FrameResult, RiskEstimate
 
 NAN = float("nan")
@@ -47,14 +48,14 @@ def _f(v) -> float:
     return NAN if v is None else float(v)
 
 
-def counted_mask(objects: Sequence[Mapping], cfg: EvalConfig) -> np.ndarray:
+def counted_mask(objects: Sequence[ObjectTruth], cfg: EvalConfig) -> np.ndarray:
     """Which GT objects count (visibility and range rule of the module docstring).
 
     An object carrying its own ``counted`` flag (a labelled dataset whose labels say what must be
     found, e.g. KITTI's difficulty levels) uses it in place of the visibility rule; range still applies.
     """
-    return np.array([(bool(o["counted"]) if "counted" in o else o["visibility"] >= cfg.min_visibility)
-                     and o["d_long"] <= cfg.max_range_m for o in objects], dtype=bool)
+    return np.array([(o.counted if o.counted is not None else o.visibility >= cfg.min_visibility)
+                     and o.d_long <= cfg.max_range_m for o in objects], dtype=bool)
 
 
 def out_of_range(boxes: np.ndarray, camera: CameraModel | None, max_range_m: float) -> np.ndarray | None:
@@ -66,18 +67,18 @@ def out_of_range(boxes: np.ndarray, camera: CameraModel | None, max_range_m: flo
     return ~(ground <= max_range_m)
 
 
-def frame_records(truth: Mapping, result: FrameResult, cfg: EvalConfig,
+def frame_records(truth: FrameTruth, result: FrameResult, cfg: EvalConfig,
                   camera: CameraModel | None = None) -> list[ObjectRecord]:
     """Side-by-side records of one frame (see :mod:`harness.scoring.records`)."""
-    objects = truth["objects"]
+    objects = truth.objects
     counted = counted_mask(objects, cfg)
     tracks = result.tracks
-    gt_boxes = as_boxes([o["box"] for o in objects])
+    gt_boxes = as_boxes([o.box for o in objects])
     tr_boxes = as_boxes([t.box for t in tracks])
     match = {g: (e, iou) for g, e, iou in match_boxes(gt_boxes, tr_boxes, cfg.min_iou)}
     _, set_aside = split_ignored(gt_boxes, counted, tr_boxes, cfg.min_iou, cfg.ignore_cover,
                                  out_of_range(tr_boxes, camera, cfg.max_range_m))
-    frame, t = int(truth["frame"]), float(truth["t"])
+    frame, t = truth.frame, truth.t
     recs: list[ObjectRecord] = []
     used = set()
 
@@ -91,10 +92,10 @@ def frame_records(truth: Mapping, result: FrameResult, cfg: EvalConfig,
         r.ttc_est = _f(result.risk.ttc.get(tr.id))
 
     for g, o in enumerate(objects):
-        r = ObjectRecord(frame=frame, t=t, gt_id=int(o["id"]), counted=bool(counted[g]),
-                         visibility=float(o["visibility"]), d_long_gt=_f(o["d_long"]), d_lat_gt=_f(o["d_lat"]),
-                         v_long_gt=_f(o["v_long"]), v_lat_gt=_f(o["v_lat"]), ttc_gt=_f(o.get("ttc")))
-        r.gt_x1, r.gt_y1, r.gt_x2, r.gt_y2 = map(float, o["box"])
+        r = ObjectRecord(frame=frame, t=t, gt_id=o.id, counted=bool(counted[g]),
+                         visibility=float(o.visibility), d_long_gt=_f(o.d_long), d_lat_gt=_f(o.d_lat),
+                         v_long_gt=_f(o.v_long), v_lat_gt=_f(o.v_lat), ttc_gt=_f(o.ttc))
+        r.gt_x1, r.gt_y1, r.gt_x2, r.gt_y2 = map(float, o.box)
         if g in match:
             e, iou = match[g]
             used.add(e)
@@ -143,19 +144,19 @@ def state_metrics(records: Sequence[ObjectRecord], cfg: EvalConfig) -> dict[str,
                       "with_state": int(np.isfinite(col["d_y_est"]).sum())}}
 
 
-def frame_warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig) -> dict:
+def frame_warning_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult], cfg: EvalConfig) -> dict:
     """Scene-level warnings: does the frame contain any TTC below the threshold?"""
     thr = cfg.warning_threshold_s
     est = [bool(algo.warnings_from_ttc(list(r.risk.ttc.values()), thr).any()) for r in results]
     gt = []
     for tr in truths:
-        objs = [o for o, c in zip(tr["objects"], counted_mask(tr["objects"], cfg)) if c]
-        gt.append(bool(algo.warnings_from_ttc([o.get("ttc") for o in objs], thr).any()))
+        objs = [o for o, c in zip(tr.objects, counted_mask(tr.objects, cfg)) if c]
+        gt.append(bool(algo.warnings_from_ttc([o.ttc for o in objs], thr).any()))
     est_a, gt_a = np.array(est, dtype=bool), np.array(gt, dtype=bool)
     return algo.precision_recall(int((est_a & gt_a).sum()), int(est_a.sum()), int(gt_a.sum()))
 
 
-def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult],
+def detection_tracking_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult],
                                cfg: EvalConfig, camera: CameraModel | None = None,
                                tracking: bool = True) -> tuple[dict, dict]:
     """Detection precision/recall at ``min_iou`` and motmetrics tracking metrics.
@@ -165,9 +166,9 @@ def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[Fram
     mot = MotScorer(cfg.min_iou) if tracking else None
     tp = n_pred = n_true = 0
     for truth, res in zip(truths, results):
-        objs = truth["objects"]
+        objs = truth.objects
         counted = counted_mask(objs, cfg)
-        gt_boxes = as_boxes([o["box"] for o in objs])
+        gt_boxes = as_boxes([o.box for o in objs])
         det_boxes = as_boxes([d.box for d in res.detections])
         kept, ignored = split_ignored(gt_boxes, counted, det_boxes, cfg.min_iou, cfg.ignore_cover,
                                       out_of_range(det_boxes, camera, cfg.max_range_m))
@@ -177,8 +178,8 @@ def detection_tracking_metrics(truths: Sequence[Mapping], results: Sequence[Fram
         if mot is None:
             continue
         tr_boxes = as_boxes([t.box for t in res.tracks])
-        mot.update([o["id"] for o in objs], gt_boxes, counted, [t.id for t in res.tracks], tr_boxes,
-                   frame=int(truth["frame"]), ignore_cover=cfg.ignore_cover,
+        mot.update([o.id for o in objs], gt_boxes, counted, [t.id for t in res.tracks], tr_boxes,
+                   frame=truth.frame, ignore_cover=cfg.ignore_cover,
                    track_out_of_range=out_of_range(tr_boxes, camera, cfg.max_range_m))
     detection = algo.precision_recall(tp, n_pred, n_true)
     detection["min_iou"] = cfg.min_iou
@@ -213,7 +214,7 @@ def runtime_metrics(results: Sequence[FrameResult], wall_time_s: float | None) -
     return rt, fps
 
 
-def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig = EvalConfig(),
+def evaluate(truths: Sequence[FrameTruth], results: Sequence[FrameResult], cfg: EvalConfig = EvalConfig(),
              wall_time_s: float | None = None, run_info: Mapping | None = None,
              camera: CameraModel | None = None, baseline_risk: Sequence[RiskEstimate] | None = None,
              ego_speed_method: str | None = None, fcw_threshold_s: float | None = None,
@@ -227,13 +228,13 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
     for ``warning.*`` (:mod:`harness.scoring.warnings`); None: ``cfg.warning_threshold_s``.
     ``tracking=False``: the frames are independent images, ``tracking.*`` is all null.
 
-    Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`jsonable`.
+    Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`monorarp.io.to_jsonable`.
     """
     if len(truths) != len(results):
         raise ValueError(f"{len(truths)} truths but {len(results)} results")
     for tr, res in zip(truths, results):
-        if int(tr["frame"]) != res.index:
-            raise ValueError(f"truth frame {tr['frame']} paired with result frame {res.index}")
+        if tr.frame != res.index:
+            raise ValueError(f"truth frame {tr.frame} paired with result frame {res.index}")
     records = [r for tr, res in zip(truths, results) for r in frame_records(tr, res, cfg, camera)]
     sm = state_metrics(records, cfg)
     sm["ttc"]["frame_warning"] = frame_warning_metrics(truths, results, cfg)
@@ -250,7 +251,7 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
         "runtime_ms": runtime,
         "fps": fps,
         "wall_time_s": NAN if wall_time_s is None else float(wall_time_s),
-        "counts": {"gt_object_frames": sum(len(t["objects"]) for t in truths),
+        "counts": {"gt_object_frames": sum(len(t.objects) for t in truths),
                    "counted_object_frames": int(sum(r.counted for r in records if r.gt_id is not None)),
                    "track_frames": sum(len(r.tracks) for r in results),
                    "detections": sum(len(r.detections) for r in results), **sm["pairs"]},
@@ -263,7 +264,7 @@ def evaluate(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: Eva
     return metrics, records
 
 
-def horizon_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult],
+def horizon_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult],
                     camera: CameraModel | None) -> dict | None:
     """The horizon stage's row against the true horizon row of each frame (None without a stage).
 
@@ -278,7 +279,7 @@ def horizon_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult],
     for tr, r in zip(truths, results):
         if r.horizon is None:
             continue
-        cam_true = tr.get("camera", {}).get("horizon_row")
+        cam_true = tr.camera.horizon_row if tr.camera is not None else None
         if cam_true is None and camera is None:
             continue
         true.append(float(cam_true) if cam_true is not None else camera.horizon_row)
@@ -296,10 +297,10 @@ def horizon_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult],
 
 
 # ------------------------------------------------------------------------ lane speed, risk
-def lane_speed_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], method: str | None) -> dict:
+def lane_speed_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult], method: str | None) -> dict:
     """Ego-speed estimate (m/s) against the truth's ``ego.speed`` (see the module docstring)."""
     est = np.array([NAN if r.ego_speed is None else float(r.ego_speed) for r in results], dtype=float)
-    gt = np.array([float(t["ego"]["speed"]) for t in truths], dtype=float)
+    gt = np.array([t.ego.speed for t in truths], dtype=float)
     out: dict[str, Any] = {"method": method}
     out.update(algo.error_stats(est, gt, relative=True, unit="_mps"))
     n_valid = int(np.isfinite(est).sum())
@@ -308,24 +309,23 @@ def lane_speed_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult]
     return out
 
 
-def risk_event(truth: Mapping, near_miss_ttc_s: float) -> bool:
+def risk_event(truth: FrameTruth, near_miss_ttc_s: float) -> bool:
     """Collision (ego's or a visible vehicle's ``crashed`` flag) or near miss (a visible vehicle's TTC < threshold)."""
-    if truth["ego"].get("crashed", False):
+    if truth.ego.crashed:
         return True
-    return any(o.get("crashed", False) or (o.get("ttc") is not None and o["ttc"] < near_miss_ttc_s)
-               for o in truth["objects"])
+    return any(o.crashed or (o.ttc is not None and o.ttc < near_miss_ttc_s) for o in truth.objects)
 
 
-def horizon_frames(truths: Sequence[Mapping], horizon_s: float) -> int:
+def horizon_frames(truths: Sequence[FrameTruth], horizon_s: float) -> int:
     """The label window in frames: ``round(horizon_s / dt)`` with dt the median frame interval."""
-    t = np.array([float(tr["t"]) for tr in truths], dtype=float)
+    t = np.array([tr.t for tr in truths], dtype=float)
     if t.size < 2:
         return 1 << 30                        # one frame: no window fits, only positives are labelled
     dt = float(np.median(np.diff(t)))
     return int(round(horizon_s / dt)) if dt > 0 else 1 << 30
 
 
-def risk_labels(truths: Sequence[Mapping], cfg: EvalConfig) -> tuple[np.ndarray, np.ndarray]:
+def risk_labels(truths: Sequence[FrameTruth], cfg: EvalConfig) -> tuple[np.ndarray, np.ndarray]:
     """(events, labels) per frame: bool events and float labels (nan = excluded; see the module docstring)."""
     events = np.array([risk_event(t, cfg.near_miss_ttc_s) for t in truths], dtype=bool)
     return events, algo.horizon_labels(events, horizon_frames(truths, cfg.risk_horizon_s))
@@ -348,7 +348,7 @@ def _risk_scores(estimates: Sequence[RiskEstimate], labels: np.ndarray, near_mis
             "brier": algo.brier(prob, y)}
 
 
-def risk_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig,
+def risk_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult], cfg: EvalConfig,
                  baseline: Sequence[RiskEstimate] | None = None) -> dict:
     """``risk.*`` of ``metrics.json``: AUROC and Brier score against the horizon labels."""
     events, labels = risk_labels(truths, cfg)
@@ -371,7 +371,7 @@ FRAME_COLUMNS = ("frame", "t", "ego_speed_est", "ego_speed_gt", "risk", "risk_ki
                  "warning_ttc", "ego_crashed", "true_min_ttc")
 
 
-def frame_rows(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: EvalConfig,
+def frame_rows(truths: Sequence[FrameTruth], results: Sequence[FrameResult], cfg: EvalConfig,
                baseline: Sequence[RiskEstimate] | None = None) -> list[dict]:
     """One row per frame (``per_frame.csv``): ego speed estimate/truth (m/s), risk, its label (nan = excluded),
     the warning decision (active, track, its TTC) and the truth's crash flag and lowest TTC (s)."""
@@ -381,14 +381,13 @@ def frame_rows(truths: Sequence[Mapping], results: Sequence[FrameResult], cfg: E
     for k, (tr, res) in enumerate(zip(truths, results)):
         rows.append({"frame": res.index, "t": res.t,
                      "ego_speed_est": NAN if res.ego_speed is None else float(res.ego_speed),
-                     "ego_speed_gt": float(tr["ego"]["speed"]), "risk": float(res.risk.risk),
+                     "ego_speed_gt": tr.ego.speed, "risk": float(res.risk.risk),
                      "risk_kind": res.risk.kind, "risk_probability": float(prob[k]),
                      "baseline_ttc_risk": NAN if baseline is None else float(baseline[k].risk),
                      "risk_event": bool(events[k]), "risk_label": labels[k],
                      "warning_active": bool(res.warning.active), "warning_track": res.warning.track_id,
-                     "warning_ttc": _f(res.warning.ttc), "ego_crashed": bool(tr["ego"].get("crashed", False)),
-                     "true_min_ttc": min((o["ttc"] for o in tr["objects"] if o.get("ttc") is not None),
-                                         default=NAN)})
+                     "warning_ttc": _f(res.warning.ttc), "ego_crashed": tr.ego.crashed,
+                     "true_min_ttc": _f(tr.min_ttc)})
     return rows
 
 
@@ -400,11 +399,6 @@ def write_frame_csv(rows: Sequence[Mapping], path: str | Path) -> None:
         for r in rows:
             w.writerow([_cell(int(r[c]) if c == "risk_label" and np.isfinite(r[c]) else r[c])
                         for c in FRAME_COLUMNS])
-
-
-def jsonable(obj: Any) -> Any:
-    """Nested dicts/lists with numpy scalars -> plain JSON types; NaN/inf -> None."""
-    return to_jsonable(obj)
 
 
 def write_metrics(metrics: Mapping, path: str | Path) -> None:

@@ -7,12 +7,13 @@ definitions: docs/metrics.md (warning episodes).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from harness.scoring.match import as_boxes, match_boxes
+from harness.truth import FrameTruth, ObjectTruth
 from monorarp.types import FrameResult
 
 
@@ -51,35 +52,34 @@ def episodes(results: Sequence[FrameResult]) -> list[Episode]:
     return out
 
 
-def conflict_frames(truths: Sequence[Mapping], threshold_s: float) -> np.ndarray:
+def conflict_frames(truths: Sequence[FrameTruth], threshold_s: float) -> np.ndarray:
     """Per frame: is there a truth conflict (module docstring)?"""
-    return np.array([bool(t["ego"].get("crashed", False)) or
-                     any(o.get("ttc") is not None and o["ttc"] < threshold_s for o in t["objects"])
+    return np.array([t.ego.crashed or any(o.ttc is not None and o.ttc < threshold_s for o in t.objects)
                      for t in truths], dtype=bool)
 
 
-def _matched_truth(truth: Mapping, result: FrameResult, track_id: int | None, min_iou: float) -> Mapping | None:
+def _matched_truth(truth: FrameTruth, result: FrameResult, track_id: int | None,
+                   min_iou: float) -> ObjectTruth | None:
     """The truth object the track ``track_id`` matches in this frame (Hungarian on IoU), or None."""
-    objs = truth["objects"]
+    objs = truth.objects
     ids = [t.id for t in result.tracks]
     if track_id is None or track_id not in ids or not objs:
         return None
-    pairs = match_boxes(as_boxes([o["box"] for o in objs]), as_boxes([t.box for t in result.tracks]), min_iou)
+    pairs = match_boxes(as_boxes([o.box for o in objs]), as_boxes([t.box for t in result.tracks]), min_iou)
     e_of = ids.index(track_id)
     return next((objs[g] for g, e, _ in pairs if e == e_of), None)
 
 
-def _frame_ttc(truth: Mapping, result: FrameResult, track_id: int | None,
-               min_iou: float) -> tuple[Mapping | None, float | None]:
+def _frame_ttc(truth: FrameTruth, result: FrameResult, track_id: int | None,
+               min_iou: float) -> tuple[ObjectTruth | None, float | None]:
     """(matched truth object, true TTC) of the warned track in one frame; unmatched: the frame's lowest true TTC."""
     obj = _matched_truth(truth, result, track_id, min_iou)
     if obj is not None:
-        return obj, obj.get("ttc")
-    ttcs = [o["ttc"] for o in truth["objects"] if o.get("ttc") is not None]
-    return None, (min(ttcs) if ttcs else None)
+        return obj, obj.ttc
+    return None, truth.min_ttc
 
 
-def _why(ep: Episode, truth: Mapping, result: FrameResult, obj: Mapping | None) -> str:
+def _why(ep: Episode, truth: FrameTruth, result: FrameResult, obj: ObjectTruth | None) -> str:
     """One line saying what the pipeline saw and what was true at the onset of a false alarm."""
     st = result.states.get(ep.track_id) if ep.track_id is not None else None
     est = (f"est d_x {st.d_x:+.1f} m, d_y {st.d_y:.1f} m, v_x {st.v_x:+.1f} m/s, v_y {st.v_y:+.1f} m/s, "
@@ -87,13 +87,13 @@ def _why(ep: Episode, truth: Mapping, result: FrameResult, obj: Mapping | None) 
            else "no state")
     if obj is None:
         return f"track {ep.track_id} matches no vehicle (a false or mislocated track); {est}"
-    ttc = obj.get("ttc")
-    return (f"track {ep.track_id} is vehicle {obj['id']} (lane {obj.get('lane_rel', 0):+d}): {est}; "
-            f"true d_lat {obj['d_lat']:+.1f} m, d_long {obj['d_long']:.1f} m, v_lat {obj['v_lat']:+.1f} m/s, "
-            f"v_long {obj['v_long']:+.1f} m/s, true TTC {'none' if ttc is None else f'{ttc:.2f} s'}")
+    ttc = obj.ttc
+    return (f"track {ep.track_id} is vehicle {obj.id} (lane {obj.lane_rel or 0:+d}): {est}; "
+            f"true d_lat {obj.d_lat:+.1f} m, d_long {obj.d_long:.1f} m, v_lat {obj.v_lat:+.1f} m/s, "
+            f"v_long {obj.v_long:+.1f} m/s, true TTC {'none' if ttc is None else f'{ttc:.2f} s'}")
 
 
-def warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], threshold_s: float,
+def warning_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult], threshold_s: float,
                     min_iou: float = 0.5) -> dict:
     """``warning.*`` of ``metrics.json`` (module docstring). ``truths[i]`` and ``results[i]`` are the same frame."""
     conflict = conflict_frames(truths, threshold_s)
@@ -105,7 +105,7 @@ def warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], t
         ep.false_alarm = not ep.conflict
         obj, ep.true_ttc_at_onset_s = _frame_ttc(truths[k0], results[k0], ep.track_id, min_iou)
         if obj is not None:
-            ep.gt_id = int(obj["id"])
+            ep.gt_id = obj.id
         ep.true_ttc_at_conflict_s = ep.true_ttc_at_onset_s
         for k in range(k0 + 1, k1 + 1) if ep.true_ttc_at_onset_s is None else ():
             _, ttc_k = _frame_ttc(truths[k], results[k], results[k].warning.track_id, min_iou)
@@ -114,10 +114,10 @@ def warning_metrics(truths: Sequence[Mapping], results: Sequence[FrameResult], t
                 break
         if ep.false_alarm:
             ep.why = _why(ep, truths[k0], results[k0], obj)
-    t = np.array([float(tr["t"]) for tr in truths], dtype=float)
+    t = np.array([tr.t for tr in truths], dtype=float)
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
-    speeds = np.array([float(tr["ego"]["speed"]) for tr in truths], dtype=float)
-    crash = [k for k, tr in enumerate(truths) if tr["ego"].get("crashed", False)]
+    speeds = np.array([tr.ego.speed for tr in truths], dtype=float)
+    crash = [k for k, tr in enumerate(truths) if tr.ego.crashed]
     contact_t = float(t[crash[0]]) if crash else None
     first = eps[0] if eps else None
     conflict_idx = np.flatnonzero(conflict)

@@ -6,7 +6,3 @@
 * :mod:`.events` — timed events (brake, cut-in, speed change) as controllers handed to vehicles;
 * :mod:`.simulator` — :class:`Simulation` / :func:`simulate`, stepping once per frame.
 """
-
-from harness.simulation.simulator import Simulation, simulate
-
-__all__ = ["Simulation", "simulate"]

@@ -25,12 +25,12 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from harness.output import OutputError
 from harness.sweep.executors import Executor, make_executor
 from harness.sweep.expand import Expansion, RunTask, load_and_expand
 from harness.sweep.report import render_report
 from harness.sweep.summary import collect_rows, write_summary, write_text_atomic
 from harness.sweep.worker import METRICS_JSON, RUN_JSON, RunOutcome, describe_error
+from monorarp.io import OutputError
 
 if TYPE_CHECKING:
     from harness.frame_cache import FrameCache

@@ -24,9 +24,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from harness.output import write_json_atomic
 from harness.sweep.expand import RunTask, format_value
 from harness.sweep.worker import ERROR_JSON, METRICS_JSON, RUN_JSON
+from monorarp.io import write_json_atomic
 
 SUMMARY_JSON = "summary.json"
 SUMMARY_CSV = "summary.csv"

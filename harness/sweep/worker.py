@@ -60,7 +60,7 @@ def describe_error(e: BaseException) -> str:
 def run_into(task: RunTask, out: Path) -> RunOutcome:
     """Run ``task`` writing its files into the existing empty directory ``out``; never raises for run errors."""
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from harness.output import write_json_atomic
+    from monorarp.io import write_json_atomic
 
     t0 = time.perf_counter()
     error, tb = task.error, None
@@ -99,7 +99,7 @@ def run_into(task: RunTask, out: Path) -> RunOutcome:
 
 def execute(task: RunTask, runs_dir: str) -> RunOutcome:
     """Run ``task`` into ``runs_dir/<id>/`` atomically (local executors: the driver's filesystem)."""
-    from harness.output import atomic_output_dir
+    from monorarp.io import atomic_output_dir
 
     with atomic_output_dir(Path(runs_dir) / task.id, owned_names=owned_names()) as tmp:
         outcome = run_into(task, tmp)
@@ -119,7 +119,7 @@ def execute_detached(task: RunTask) -> tuple[RunOutcome, dict[str, bytes]]:
 
 def write_run_files(runs_dir: str | Path, run_id: str, files: dict[str, bytes]) -> None:
     """Write a detached run's files as ``runs_dir/<run_id>/``, atomically."""
-    from harness.output import atomic_output_dir
+    from monorarp.io import atomic_output_dir
 
     allowed = set(owned_names())
     with atomic_output_dir(Path(runs_dir) / run_id, owned_names=owned_names()) as tmp:
@@ -131,7 +131,7 @@ def write_run_files(runs_dir: str | Path, run_id: str, files: dict[str, bytes]) 
 
 def failed_outcome_files(task: RunTask, error: str) -> dict[str, bytes]:
     """``run.json``/``error.json`` bytes for a run whose worker died before it could write them."""
-    from harness.output import dumps
+    from monorarp.io import dumps
 
     return {RUN_JSON: (dumps({"id": task.id, "status": "failed", "error": error, "params": task.params(),
                               "wall_time_s": None}, indent=2) + "\n").encode(),
