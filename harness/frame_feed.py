@@ -28,8 +28,8 @@ PRELOAD_BYTES = 1 << 30
 def rendered_frames(scenario: Scenario, n_frames: int | None = None) -> Iterator[tuple[Frame, FrameTruth]]:
     """(Frame, truth record) of each simulated frame; the simulation is set up before the first yield."""
     from harness.ground_truth import frame_truth
-    from harness.render import Renderer
-    from harness.simulation import simulate
+    from harness.render.renderer import Renderer
+    from harness.simulation.simulator import simulate
 
     worlds = simulate(scenario, n_frames=n_frames)
     first = next(worlds, None)   # raises scenario errors the simulation finds, before any rendering

@@ -6,11 +6,12 @@ import json
 
 import pytest
 
+from harness.truth import FrameTruth
 from harness.run_outputs import CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME, OUTPUT_NAMES, RunOutputs
 from monorarp.camera import CameraModel
 
 CAMERA = CameraModel.from_fov(64, 36, 70.0, 1.3, 0.0)
-TRUTH = {"frame": 0, "t": 0.0, "ego": {"speed": 25.0}, "objects": []}
+TRUTH = FrameTruth.from_json({"frame": 0, "t": 0.0, "ego": {"speed": 25.0}, "objects": []})
 
 
 def test_without_a_directory_nothing_is_written(tmp_path, monkeypatch):
@@ -31,7 +32,7 @@ def test_success_moves_the_directory_into_place(tmp_path):
     names = {p.name for p in target.iterdir()}
     assert names <= set(OUTPUT_NAMES)
     assert {CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME} <= names
-    assert json.loads((target / GROUND_TRUTH_NAME).read_text()) == TRUTH
+    assert json.loads((target / GROUND_TRUTH_NAME).read_text()) == TRUTH.to_json()
     assert json.loads((target / CAMERA_NAME).read_text())["width"] == 64
 
 
