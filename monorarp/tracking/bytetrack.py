@@ -31,7 +31,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from monorarp.registry import register
-from monorarp.tracking.association import assign, iou_matrix
+from monorarp.boxes import iou_matrix
+from monorarp.tracking.association import assign
 from monorarp.tracking.kalman_box import BoxKalman
 from monorarp.tracking.sort import detections_array, to_tracks
 from monorarp.types import Detection, Track

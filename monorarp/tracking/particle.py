@@ -72,7 +72,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from monorarp.registry import register
-from monorarp.tracking.association import associate_iou, iou_matrix
+from monorarp.boxes import intersection, iou_matrix
+from monorarp.tracking.association import associate_iou
 from monorarp.types import Detection, Track
 
 _MIN_SIZE = 1.0  # px: particles never shrink a box below this
@@ -278,10 +279,7 @@ class ParticleTracker:
         there, it would hide that farther one and be detected itself; the track is more likely
         a duplicate or a part of that vehicle (a truck's lower half, a car's window).
         """
-        inter = (np.clip(np.minimum(boxes[:, None, 2], det_boxes[None, :, 2])
-                         - np.maximum(boxes[:, None, 0], det_boxes[None, :, 0]), 0.0, None)
-                 * np.clip(np.minimum(boxes[:, None, 3], det_boxes[None, :, 3])
-                           - np.maximum(boxes[:, None, 1], det_boxes[None, :, 1]), 0.0, None))
+        inter = intersection(boxes[:, None, :], det_boxes[None, :, :])
         area = np.maximum((boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1]), 1e-9)
         cover = inter / area[:, None]
         nearer = det_boxes[None, :, 3] > boxes[:, None, 3]
