@@ -1,4 +1,4 @@
-"""Reading declarative YAML config files and reporting pydantic errors as one line."""
+"""Reporting pydantic validation errors of a config file as one line (reading it: :mod:`monorarp.readers`)."""
 
 from __future__ import annotations
 
@@ -6,8 +6,6 @@ from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
-
-from monorarp.readers import parse_yaml, read_text
 
 
 def format_validation_error(source: str | Path, err: ValidationError) -> str:
@@ -31,11 +29,3 @@ def _shown(value: Any, limit: int = 80) -> str:
         return f"<integer of {value.bit_length()} bits>"
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
-
-def read_yaml(path: str | Path, error: type[Exception], what: str) -> Any:
-    """The parsed content of YAML file ``path``; unreadable or malformed files raise ``error``.
-
-    Size, encoding, nesting depth, alias expansion and tags are limited by
-    :mod:`monorarp.readers` (one line for whatever the file holds).
-    """
-    return parse_yaml(read_text(path, what, error), path, error)

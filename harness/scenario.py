@@ -14,10 +14,11 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from harness.camera_motion import CameraMotion
-from harness.config_io import format_validation_error, read_yaml
+from harness.config_io import format_validation_error
 
 from monorarp.camera import CameraError, CameraModel
 from monorarp.errors import UserError
+from monorarp.readers import read_yaml
 
 
 class ScenarioError(UserError, ValueError):
@@ -267,7 +268,7 @@ def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:
 
 def load_scenario_dict(path: str | Path) -> dict:
     """Read a scenario YAML into a plain dict (no validation)."""
-    return read_yaml(path, ScenarioError, "scenario")
+    return read_yaml(path, "scenario", ScenarioError)
 
 
 def load_scenario(path: str | Path) -> Scenario:

@@ -28,9 +28,10 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from harness.config_io import format_validation_error, read_yaml
+from harness.config_io import format_validation_error
 from harness.scenario import ScenarioError, load_scenario_dict
 from monorarp.errors import UserError
+from monorarp.readers import read_yaml
 
 KMH = 1 / 3.6
 #: Target vehicle models (length, width) a trial draws from: compact, mid-size, estate, SUV, van.
@@ -145,7 +146,7 @@ class Protocol(_Model):
 
 
 def load_protocol(path: str | Path) -> Protocol:
-    data = read_yaml(path, ProtocolError, "protocol")
+    data = read_yaml(path, "protocol", ProtocolError)
     if not isinstance(data, dict):
         raise ProtocolError(f"{path}: a protocol must be a YAML mapping")
     try:

@@ -30,9 +30,10 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from harness.config_io import format_validation_error, read_yaml
+from harness.config_io import format_validation_error
 from harness.scenario import Scenario
 from monorarp.errors import UserError
+from monorarp.readers import read_yaml
 
 DEFAULT_DETECTOR = "centernet"
 _NAME = r"^[A-Za-z0-9][A-Za-z0-9_.+\-]*$"
@@ -283,5 +284,5 @@ def parse_sweep_spec(data: Any, source: str | Path = "<sweep spec>") -> SweepSpe
 
 def load_sweep_spec(path: str | Path) -> SweepSpec:
     """Read and validate a sweep-spec YAML file (structure only; see :func:`harness.sweep.expand.expand`)."""
-    data = read_yaml(path, SweepSpecError, "sweep spec")
+    data = read_yaml(path, "sweep spec", SweepSpecError)
     return parse_sweep_spec(data, path)
