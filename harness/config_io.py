@@ -1,11 +1,23 @@
-"""Reporting pydantic validation errors of a config file as one line (reading it: :mod:`monorarp.readers`)."""
+"""Validating a loaded config file with pydantic, errors as one line (reading it: :mod:`monorarp.readers`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def validate_config(model: type[M], data: Any, source: str | Path, error: type[Exception], what: str) -> M:
+    """``model`` built from the loaded document ``data``; ``error`` naming ``source`` (field, reason) otherwise."""
+    if not isinstance(data, dict):
+        raise error(f"{source}: a {what} must be a YAML mapping")
+    try:
+        return model.model_validate(data)
+    except ValidationError as e:
+        raise error(format_validation_error(source, e)) from None
 
 
 def format_validation_error(source: str | Path, err: ValidationError) -> str:

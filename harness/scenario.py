@@ -11,10 +11,10 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from harness.camera_motion import CameraMotion
-from harness.config_io import format_validation_error
+from harness.config_io import validate_config
 
 from monorarp.camera import CameraError, CameraModel
 from monorarp.errors import UserError
@@ -258,12 +258,7 @@ class Scenario(_Model):
 
 def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:
     """Validate an already-loaded mapping (e.g. after a sweep applied overrides)."""
-    if not isinstance(data, dict):
-        raise ScenarioError(f"{source}: a scenario must be a YAML mapping")
-    try:
-        return Scenario.model_validate(data)
-    except ValidationError as e:
-        raise ScenarioError(format_validation_error(source, e)) from None
+    return validate_config(Scenario, data, source, ScenarioError, "scenario")
 
 
 def load_scenario_dict(path: str | Path) -> dict:

@@ -28,9 +28,9 @@ import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from harness.config_io import format_validation_error
+from harness.config_io import validate_config
 from harness.scenario import Scenario
 from monorarp.errors import UserError
 from monorarp.readers import read_yaml
@@ -274,12 +274,7 @@ class SweepSpec(_Model):
 # ------------------------------------------------------------------- loading
 def parse_sweep_spec(data: Any, source: str | Path = "<sweep spec>") -> SweepSpec:
     """Validate an already-loaded mapping; raises :class:`SweepSpecError`."""
-    if not isinstance(data, dict):
-        raise SweepSpecError(f"{source}: a sweep spec must be a YAML mapping")
-    try:
-        return SweepSpec.model_validate(data)
-    except ValidationError as e:
-        raise SweepSpecError(format_validation_error(source, e)) from None
+    return validate_config(SweepSpec, data, source, SweepSpecError, "sweep spec")
 
 
 def load_sweep_spec(path: str | Path) -> SweepSpec:

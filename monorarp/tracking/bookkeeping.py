@@ -96,3 +96,14 @@ class TrackBook:
                              score=float(self.score[i]), label=self.labels[i], age=int(self.age[i]),
                              coasting=bool(coasting[k]) if coasting is not None else False))
         return out
+
+
+class BookTracker:
+    """Base of the trackers whose tracks live in a :class:`TrackBook` (``self._book``)."""
+
+    _book: TrackBook
+
+    @property
+    def n_tracks(self) -> int:
+        """Tracks held now (output or not)."""
+        return len(self._book)

@@ -33,7 +33,7 @@ import numpy as np
 from monorarp.registry import register
 from monorarp.boxes import iou_matrix
 from monorarp.tracking.association import assign
-from monorarp.tracking.bookkeeping import TrackBook, detections_array
+from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.tracking.kalman_box import BoxKalman
 from monorarp.types import Detection, Track
 
@@ -50,7 +50,7 @@ def _match(track_boxes: np.ndarray, det_boxes: np.ndarray, min_iou: float, det_s
 
 
 @register("tracker", "bytetrack")
-class ByteTracker:
+class ByteTracker(BookTracker):
     """ByteTrack; ``update(image, detections, t) -> list[Track]`` (``image``, ``t`` unused: one step per call).
 
     Parameters (see the module docstring): ``high_thresh``, ``low_thresh``,
@@ -78,10 +78,6 @@ class ByteTracker:
         self._kf = BoxKalman()
         # state: TRACKED or LOST; active: confirmed; start / end: frame of birth / of the last match
         self._book = TrackBook(state=((), np.int64), active=((), bool), start=((), np.int64), end=((), np.int64))
-
-    @property
-    def n_tracks(self) -> int:
-        return len(self._book)
 
     def _keep(self, keep: np.ndarray) -> None:
         self._kf.keep(keep)

@@ -74,7 +74,7 @@ import numpy as np
 from monorarp.registry import register
 from monorarp.boxes import intersection, iou_matrix
 from monorarp.tracking.association import associate_iou
-from monorarp.tracking.bookkeeping import TrackBook, detections_array
+from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.types import Detection, Track
 
 _MIN_SIZE = 1.0  # px: particles never shrink a box below this
@@ -122,7 +122,7 @@ def fit_velocity(z: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 @register("tracker", "particle")
-class ParticleTracker:
+class ParticleTracker(BookTracker):
     """Multi-object particle tracker; ``update(image, detections, t) -> list[Track]``.
 
     Parameters (noise scales are fractions of the box's width/height):
@@ -191,10 +191,6 @@ class ParticleTracker:
             hist=((w, 4), f),           # last matched detections (cxcywh), ring buffer
             hist_t=((w,), f))           # their frame times (NaN: empty slot)
         self._t_last: float | None = None
-
-    @property
-    def n_tracks(self) -> int:
-        return len(self._book)
 
     # ---------------------------------------------------------------- stages
     def _predict(self, dt: float) -> None:

@@ -23,13 +23,13 @@ import numpy as np
 
 from monorarp.registry import register
 from monorarp.tracking.association import associate_iou
-from monorarp.tracking.bookkeeping import TrackBook, detections_array
+from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.tracking.kalman_box import BoxKalman
 from monorarp.types import Detection, Track
 
 
 @register("tracker", "sort")
-class SortTracker:
+class SortTracker(BookTracker):
     """SORT; ``update(image, detections, t) -> list[Track]`` (``image`` and ``t`` unused: one step per call).
 
     Parameters:
@@ -54,10 +54,6 @@ class SortTracker:
         self._kf = BoxKalman()
         # streak: consecutive matched frames; since: frames since the last match
         self._book = TrackBook(streak=((), np.int64), since=((), np.int64))
-
-    @property
-    def n_tracks(self) -> int:
-        return len(self._book)
 
     def _keep(self, keep: np.ndarray) -> None:
         self._kf.keep(keep)
