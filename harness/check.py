@@ -18,7 +18,7 @@ from typing import Any
 from harness.sweep.summary import flatten, is_deterministic
 from monorarp.errors import UserError
 from monorarp.io import write_json_atomic
-from monorarp.readers import MAX_JSON_BYTES, parse_json, read_text
+from monorarp.readers import read_json
 
 VERSION = 1
 DIRECTIONS = ("lower_is_better", "higher_is_better", "two_sided")
@@ -110,10 +110,6 @@ def checked_exists(path: Path) -> bool:
         raise CheckInputError(f"{str(path)[:200]}: cannot use this path ({e.strerror or e})") from None
 
 
-def _read_json(path: Path, what: str) -> Any:
-    return parse_json(read_text(path, what, CheckInputError, MAX_JSON_BYTES), path, what, CheckInputError)
-
-
 def load_results(path: str | Path) -> dict[str, RunResult]:
     """Runs of a sweep directory (``summary.json``) or of one run directory (``metrics.json``)."""
     path = Path(path)
@@ -123,7 +119,7 @@ def load_results(path: str | Path) -> dict[str, RunResult]:
         raise CheckInputError(f"{path}: give a run directory (with metrics.json) or a sweep directory "
                               f"(with summary.json), not a file")
     if (path / "summary.json").is_file():
-        data = _read_json(path / "summary.json", "sweep summary")
+        data = read_json(path / "summary.json", "sweep summary", CheckInputError)
         runs = data.get("runs") if isinstance(data, dict) else None
         if not isinstance(runs, list) or not all(isinstance(r, dict) and "id" in r for r in runs):
             raise CheckInputError(f"{path / 'summary.json'}: not a sweep summary (no 'runs' list of runs with ids)")
@@ -133,12 +129,12 @@ def load_results(path: str | Path) -> dict[str, RunResult]:
         return {str(r["id"]): RunResult(str(r.get("status", "ok")), r.get("error"),
                                         dict(r.get("metrics") or {})) for r in runs}
     if (path / "metrics.json").is_file():
-        metrics = _read_json(path / "metrics.json", "run metrics")
+        metrics = read_json(path / "metrics.json", "run metrics", CheckInputError)
         if not isinstance(metrics, dict):
             raise CheckInputError(f"{path / 'metrics.json'}: not a metrics mapping")
         run_id = path.resolve().name
         if (path / "run.json").is_file():
-            info = _read_json(path / "run.json", "run record")
+            info = read_json(path / "run.json", "run record", CheckInputError)
             run_id = str(info.get("id", run_id)) if isinstance(info, dict) else run_id
         return {run_id: RunResult("ok", None, flatten(metrics))}
     raise CheckInputError(f"{path}: neither a run directory (metrics.json) nor a sweep directory (summary.json)")
@@ -203,7 +199,7 @@ def load_baseline(path: str | Path) -> dict:
     path = Path(path)
     if not checked_exists(path) or not path.is_file():
         raise CheckInputError(f"{path}: no such baseline file")
-    return parse_baseline(_read_json(path, "baseline"), path)
+    return parse_baseline(read_json(path, "baseline", CheckInputError), path)
 
 
 # ------------------------------------------------------------------- compare

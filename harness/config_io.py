@@ -1,13 +1,23 @@
-"""Reading declarative YAML config files and reporting pydantic errors as one line."""
+"""Validating a loaded config file with pydantic, errors as one line (reading it: :mod:`monorarp.readers`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
-from monorarp.readers import parse_yaml, read_text
+M = TypeVar("M", bound=BaseModel)
+
+
+def validate_config(model: type[M], data: Any, source: str | Path, error: type[Exception], what: str) -> M:
+    """``model`` built from the loaded document ``data``; ``error`` naming ``source`` (field, reason) otherwise."""
+    if not isinstance(data, dict):
+        raise error(f"{source}: a {what} must be a YAML mapping")
+    try:
+        return model.model_validate(data)
+    except ValidationError as e:
+        raise error(format_validation_error(source, e)) from None
 
 
 def format_validation_error(source: str | Path, err: ValidationError) -> str:
@@ -31,11 +41,3 @@ def _shown(value: Any, limit: int = 80) -> str:
         return f"<integer of {value.bit_length()} bits>"
     return text if len(text) <= limit else text[:limit - 3] + "..."
 
-
-def read_yaml(path: str | Path, error: type[Exception], what: str) -> Any:
-    """The parsed content of YAML file ``path``; unreadable or malformed files raise ``error``.
-
-    Size, encoding, nesting depth, alias expansion and tags are limited by
-    :mod:`monorarp.readers` (one line for whatever the file holds).
-    """
-    return parse_yaml(read_text(path, what, error), path, error)

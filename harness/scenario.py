@@ -11,13 +11,14 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from harness.camera_motion import CameraMotion
-from harness.config_io import format_validation_error, read_yaml
+from harness.config_io import validate_config
 
 from monorarp.camera import CameraError, CameraModel
 from monorarp.errors import UserError
+from monorarp.readers import read_yaml
 
 
 class ScenarioError(UserError, ValueError):
@@ -257,17 +258,12 @@ class Scenario(_Model):
 
 def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:
     """Validate an already-loaded mapping (e.g. after a sweep applied overrides)."""
-    if not isinstance(data, dict):
-        raise ScenarioError(f"{source}: a scenario must be a YAML mapping")
-    try:
-        return Scenario.model_validate(data)
-    except ValidationError as e:
-        raise ScenarioError(format_validation_error(source, e)) from None
+    return validate_config(Scenario, data, source, ScenarioError, "scenario")
 
 
 def load_scenario_dict(path: str | Path) -> dict:
     """Read a scenario YAML into a plain dict (no validation)."""
-    return read_yaml(path, ScenarioError, "scenario")
+    return read_yaml(path, "scenario", ScenarioError)
 
 
 def load_scenario(path: str | Path) -> Scenario:

@@ -2,8 +2,11 @@
 
 * :func:`atomic_output_dir` — build a whole output directory in a temporary
   directory beside the target, move it into place only when everything worked.
-* :func:`write_json_atomic` — one JSON file via temp file + ``os.replace``.
-* :class:`JsonlWriter` — one JSON object per line, committed on clean close.
+* :func:`write_atomic` — one file (text or bytes) via a temp file beside it,
+  fsync, then ``os.replace``; :func:`write_json_atomic` is it for strict JSON.
+* :class:`JsonlWriter` — one JSON object per line, committed (the same way) on clean close.
+
+On any error (a full disk included) the temp file is removed and the target is untouched.
 
 All JSON written here is strict (RFC 8259): non-finite floats become ``null``
 and numpy scalars/arrays become plain numbers/lists (:func:`to_jsonable`).
@@ -62,21 +65,43 @@ def dumps(obj: Any, *, indent: int | None = None) -> str:
     return json.dumps(to_jsonable(obj), allow_nan=False, indent=indent, separators=separators)
 
 
-def write_json_atomic(path: str | Path, obj: Any, *, indent: int | None = 2) -> None:
-    """Write ``obj`` as strict JSON to ``path``: temp file in the same directory, then ``os.replace``."""
-    path = Path(path)
-    text = dumps(obj, indent=indent) + "\n"
+# ------------------------------------------------------------ atomic files
+def _open_temp(path: Path, *, binary: bool = False) -> tuple[IO[Any], Path]:
+    """A new file ``.NAME.*.tmp`` beside ``path`` (same filesystem: the final move is a rename), open to write."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    if binary:
+        return os.fdopen(fd, "wb"), Path(tmp)
+    return os.fdopen(fd, "w", encoding="utf-8", newline=""), Path(tmp)
+
+
+def _commit_file(f: IO[Any], tmp: Path, path: Path, data: str | bytes | None = None) -> None:
+    """Write ``data`` (if any) to the temp file ``f``, fsync and close it, move it onto ``path``.
+
+    On any error the temp file is removed and the exception propagates.
+    """
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
+        with f:
+            if data is not None:
+                f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        _chmod_default(Path(tmp), 0o666)
+        _chmod_default(tmp, 0o666)
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
+
+
+def write_atomic(path: str | Path, data: str | bytes) -> None:
+    """Write ``data`` (UTF-8 text, written as is, or bytes) to ``path``: all of it or, on an error, nothing."""
+    path = Path(path)
+    f, tmp = _open_temp(path, binary=isinstance(data, bytes))
+    _commit_file(f, tmp, path, data)
+
+
+def write_json_atomic(path: str | Path, obj: Any, *, indent: int | None = 2) -> None:
+    """Write ``obj`` as strict JSON (one trailing newline) to ``path`` with :func:`write_atomic`."""
+    write_atomic(path, dumps(obj, indent=indent) + "\n")
 
 
 class JsonlWriter:
@@ -87,9 +112,8 @@ class JsonlWriter:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=f".{self.path.name}.", suffix=".tmp")
-        self._tmp = Path(tmp)
-        self._f: IO[str] | None = os.fdopen(fd, "w", encoding="utf-8")
+        self._f: IO[str] | None
+        self._f, self._tmp = _open_temp(self.path)
         self.count = 0
 
     def write(self, record: Any) -> None:
@@ -103,15 +127,7 @@ class JsonlWriter:
         if self._f is None:
             return
         f, self._f = self._f, None
-        try:
-            f.flush()
-            os.fsync(f.fileno())
-            f.close()
-            _chmod_default(self._tmp, 0o666)
-            os.replace(self._tmp, self.path)
-        except BaseException:
-            self._tmp.unlink(missing_ok=True)
-            raise
+        _commit_file(f, self._tmp, self.path)
 
     def abort(self) -> None:
         """Discard everything written."""

@@ -20,6 +20,9 @@ never a traceback and never unbounded memory or time:
   is expanded); recursive aliases are refused.
 * :func:`parse_json` -- :func:`json.loads` with over-long integers and nesting
   deeper than :data:`MAX_DEPTH` reported as errors.
+* :func:`read_yaml`, :func:`read_json` -- a file the user names, read and parsed.
+* :func:`read_json_or_none` -- a JSON file this program wrote (a run's ``metrics.json``):
+  ``None`` when it is missing, unreadable or not JSON, for callers that treat that as "not there".
 """
 
 from __future__ import annotations
@@ -185,6 +188,11 @@ def parse_yaml(text: str, source: str | Path, error: type[Exception] = UserError
             loader.dispose()
 
 
+def read_yaml(path: str | Path, what: str, error: type[Exception] = UserError) -> Any:
+    """The parsed YAML file ``path`` (limits above); unreadable or malformed files raise ``error``."""
+    return parse_yaml(read_text(path, what, error), path, error)
+
+
 # ------------------------------------------------------------------------ JSON
 def parse_json(text: str, source: str | Path, what: str = "file", error: type[Exception] = UserError) -> Any:
     """``json.loads(text)``; malformed, too deeply nested or over-long numbers raise ``error``."""
@@ -197,6 +205,20 @@ def parse_json(text: str, source: str | Path, what: str = "file", error: type[Ex
     if _depth(data) > MAX_DEPTH:   # readers walk documents recursively: refuse what no writer produces
         raise error(f"{source}: {what} is nested more than {MAX_DEPTH} levels deep")
     return data
+
+
+def read_json(path: str | Path, what: str, error: type[Exception] = UserError,
+              max_bytes: int = MAX_JSON_BYTES) -> Any:
+    """The parsed JSON file ``path``; unreadable or malformed files raise ``error("PATH: reason")``."""
+    return parse_json(read_text(path, what, error, max_bytes), path, what, error)
+
+
+def read_json_or_none(path: str | Path) -> Any | None:
+    """The parsed JSON file ``path``, or ``None`` when it cannot be read or is not JSON."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
 
 
 def _depth(data: Any) -> int:

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from harness.scoring.hota import ALPHAS, HotaAccumulator, HotaResult, combine, hota
-from harness.scoring.match import iou_matrix
+from monorarp.boxes import iou_matrix
 
 FIXTURE = Path(__file__).parent / "data" / "hota_trackeval.json"
 TOL = 1e-6

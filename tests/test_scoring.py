@@ -12,41 +12,17 @@ import pytest
 
 from harness.scoring import algo
 from harness.scoring.evaluate import EvalConfig, evaluate, write_metrics
-from harness.scoring.match import iou_matrix, match_boxes, split_ignored
+from harness.scoring.match import match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import read_csv, write_csv
 from harness.truth import EgoTruth, FrameTruth, ObjectTruth
+from monorarp.boxes import iou_matrix
 from monorarp.camera import CameraModel
 from monorarp.io import to_jsonable
 from monorarp.types import Detection, FrameResult, ObjectState, RiskEstimate, Track
 
 
 # ------------------------------------------------------------------ matching
-def _raster_iou(a, b, size=40):
-    """IoU by counting pixels of integer-aligned boxes (independent reference)."""
-    ma = np.zeros((size, size), bool)
-    mb = np.zeros((size, size), bool)
-    ma[a[1]:a[3], a[0]:a[2]] = True
-    mb[b[1]:b[3], b[0]:b[2]] = True
-    union = (ma | mb).sum()
-    return (ma & mb).sum() / union if union else 0.0
-
-
-def test_iou_matrix_matches_pixel_counting():
-    rng = np.random.default_rng(1)
-    boxes = []
-    for _ in range(12):
-        x = np.sort(rng.choice(40, 2, replace=False))
-        y = np.sort(rng.choice(40, 2, replace=False))
-        boxes.append((int(x[0]), int(y[0]), int(x[1]), int(y[1])))
-    got = iou_matrix(boxes[:5], boxes[5:])
-    ref = np.array([[_raster_iou(p, q) for q in boxes[5:]] for p in boxes[:5]])
-    np.testing.assert_allclose(got, ref, atol=1e-12)
-    assert iou_matrix([(0, 0, 10, 10)], [(5, 0, 15, 10)])[0, 0] == pytest.approx(1 / 3)
-    assert iou_matrix([], [(0, 0, 1, 1)]).shape == (0, 1)
-    assert iou_matrix([(0, 0, 0, 5)], [(0, 0, 0, 5)])[0, 0] == 0.0   # degenerate box
-
-
 def test_hungarian_beats_greedy_and_respects_threshold():
     gt = [(0, 0, 10, 10), (2, 0, 12, 10)]
     est = [(1, 0, 11, 10), (-1, 0, 9, 10)]

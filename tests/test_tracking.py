@@ -8,20 +8,12 @@ import pytest
 
 from monorarp.registry import create
 from monorarp.tracking.particle import ParticleTracker
-from monorarp.tracking.association import assign, associate_iou, iou_matrix
+from monorarp.boxes import iou_matrix
+from monorarp.tracking.association import assign, associate_iou
 from monorarp.tracking.particle import systematic_resample
 from monorarp.types import Detection
 
 from tracking_helpers import DT, box_at, iou_ref, run  # noqa: F401
-
-
-def test_iou_matrix_matches_scalar_reference():
-    rng = np.random.default_rng(0)
-    a = rng.uniform(0, 100, (7, 2)); a = np.hstack([a, a + rng.uniform(1, 40, (7, 2))])
-    b = rng.uniform(0, 100, (5, 2)); b = np.hstack([b, b + rng.uniform(1, 40, (5, 2))])
-    ref = np.array([[iou_ref(x, y) for y in b] for x in a])
-    np.testing.assert_allclose(iou_matrix(a, b), ref, atol=1e-12)
-    assert iou_matrix(a, np.empty((0, 4))).shape == (7, 0)
 
 
 def test_global_assignment_where_greedy_swaps():

@@ -26,7 +26,6 @@ columns plus ``sample``, ``type``, ``truncated``, ``occluded``, ``difficulty``, 
 from __future__ import annotations
 
 import csv
-import json
 import threading
 import time
 from collections import OrderedDict
@@ -46,6 +45,7 @@ from harness.scoring.records import COLUMNS, _cell
 from harness.truth import EgoTruth, FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
+from monorarp.readers import read_json_or_none
 from monorarp.types import Detection, Frame, FrameResult, RiskEstimate, Track, WarningState
 
 METRICS_NAME = "metrics.json"
@@ -172,11 +172,8 @@ def read_manifest(root: Path) -> dict:
     """``export.json`` of a ``monorarp export`` dataset ({} when absent or unreadable)."""
     for p in (root / MANIFEST_NAME, root.parent / MANIFEST_NAME):
         if p.is_file():
-            try:
-                data = json.loads(p.read_text())
-                return data if isinstance(data, dict) else {}
-            except (OSError, ValueError):
-                return {}
+            data = read_json_or_none(p)
+            return data if isinstance(data, dict) else {}
     return {}
 
 

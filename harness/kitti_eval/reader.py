@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from monorarp.errors import UserError
+from monorarp.readers import MAX_JSON_BYTES, read_text
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 OBJECT_DIRS = ("image_2", "label_2", "calib")
@@ -91,19 +92,14 @@ class Dataset:
 
 
 # ---------------------------------------------------------------------------- text formats
-def _read_lines(path: Path) -> list[str]:
-    try:
-        return path.read_text(encoding="utf-8").splitlines()
-    except OSError as e:
-        raise KittiInputError(f"{path}: cannot read ({e.strerror or e})") from None
-    except UnicodeDecodeError:
-        raise KittiInputError(f"{path}: not UTF-8 text") from None
+def _read_lines(path: Path, what: str) -> list[str]:
+    return read_text(path, what, KittiInputError, MAX_JSON_BYTES).splitlines()
 
 
 def parse_calib(path: Path) -> dict[str, np.ndarray]:
     """The matrices of a calibration file (names as in KITTI object's ``calib``); ``P2`` is required."""
     out: dict[str, np.ndarray] = {}
-    for k, line in enumerate(_read_lines(path), 1):
+    for k, line in enumerate(_read_lines(path, "KITTI calibration file"), 1):
         if not line.strip():
             continue
         m = re.match(r"\s*([A-Za-z0-9_]+)\s*:?\s*(.*)$", line)
@@ -164,7 +160,7 @@ def _labels(rows: list[tuple[str, list[float], int, str]]) -> Labels:
 
 def _label_lines(path: Path, n_fields: int, kind: str):
     """(line number, fields, ``"FILE: line N"``) of each non-blank line; KittiInputError on a wrong field count."""
-    for k, line in enumerate(_read_lines(path), 1):
+    for k, line in enumerate(_read_lines(path, f"KITTI {kind} label file"), 1):
         parts = line.split()
         if not parts:
             continue

@@ -26,11 +26,12 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from harness.config_io import format_validation_error, read_yaml
+from harness.config_io import validate_config
 from harness.scenario import ScenarioError, load_scenario_dict
 from monorarp.errors import UserError
+from monorarp.readers import read_yaml
 
 KMH = 1 / 3.6
 #: Target vehicle models (length, width) a trial draws from: compact, mid-size, estate, SUV, van.
@@ -145,13 +146,7 @@ class Protocol(_Model):
 
 
 def load_protocol(path: str | Path) -> Protocol:
-    data = read_yaml(path, ProtocolError, "protocol")
-    if not isinstance(data, dict):
-        raise ProtocolError(f"{path}: a protocol must be a YAML mapping")
-    try:
-        return Protocol.model_validate(data)
-    except ValidationError as e:
-        raise ProtocolError(format_validation_error(path, e)) from None
+    return validate_config(Protocol, read_yaml(path, "protocol", ProtocolError), path, ProtocolError, "protocol")
 
 
 # ------------------------------------------------------------------ trials

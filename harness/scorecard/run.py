@@ -30,6 +30,7 @@ from harness.sweep.expand import RunTask, _inject_seeds, sanitize
 from harness.sweep.orchestrate import clean_leftovers, finished, prepare_out_dir
 from harness.sweep.spec import Variant
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
+from monorarp.readers import read_json_or_none
 
 PROTOCOL_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "fcw"
 SUITES = ("nhtsa", "ncap", "cut_in", "nominal", "risk")
@@ -127,8 +128,7 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
     """Run every trial not already finished, then score and write ``scorecard.json`` and ``report.html``."""
     from harness.scorecard.report import render_scorecard
     from harness.sweep.orchestrate import _progress
-    from harness.sweep.summary import write_text_atomic
-    from monorarp.io import write_json_atomic
+    from monorarp.io import write_atomic, write_json_atomic
 
     out = Path(out)
     trials, tasks = build_tasks(opts)
@@ -154,18 +154,11 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
                   headline=["warning.first_warning_ttc_s", "warning.episodes", "warning.false_alarms"])
     card, risk_runs = scorecard(trials, tasks, runs_dir, opts)
     write_json_atomic(out / SCORECARD_JSON, card, indent=2)
-    write_text_atomic(out / REPORT_HTML, render_scorecard(card, score.roc_curves(risk_runs, 2.0)))
+    write_atomic(out / REPORT_HTML, render_scorecard(card, score.roc_curves(risk_runs, 2.0)))
     return card
 
 
 # ----------------------------------------------------------------------------- scoring
-def _read_json(path: Path) -> dict | None:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-
-
 def _frame_arrays(run_dir: Path) -> dict[str, np.ndarray] | None:
     """``per_frame.csv`` -> t, event, and the risk scores (1/TTC; Monte Carlo where the run has it)."""
     try:
@@ -194,8 +187,8 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
     failed = []
     fa_episodes, exposure_s, exposure_km, risk_runs = [], 0.0, 0.0, []
     for trial, task in zip(trials, tasks):
-        run = _read_json(runs_dir / task.id / RUN_JSON) or {}
-        metrics = _read_json(runs_dir / task.id / METRICS_JSON) if run.get("status") == "ok" else None
+        run = read_json_or_none(runs_dir / task.id / RUN_JSON) or {}
+        metrics = read_json_or_none(runs_dir / task.id / METRICS_JSON) if run.get("status") == "ok" else None
         if metrics is None:
             failed.append({"id": task.id, "error": run.get("error") or "no result"})
         groups.setdefault((trial.suite, trial.key), []).append((trial, task, metrics, run.get("error")))

@@ -14,35 +14,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.kitti_eval.geometry import DIFFICULTIES, passes
+from monorarp.boxes import as_boxes, intersection, iou_matrix
 
 NEIGHBOUR_CLASS = {"car": "van", "pedestrian": "person_sitting"}
 
 
-def _boxes(b) -> np.ndarray:
-    return np.asarray(b, dtype=float).reshape(-1, 4)
-
-
-def iou(a, b) -> np.ndarray:
-    """(N, M) IoU of ``(x1, y1, x2, y2)`` boxes, area ``(x2 - x1)(y2 - y1)`` (the devkit's, no +1)."""
-    a, b = _boxes(a), _boxes(b)
-    iw = np.clip(np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]), 0, None)
-    ih = np.clip(np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1]), 0, None)
-    inter = iw * ih
-    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
-    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
-    union = area_a[:, None] + area_b[None, :] - inter
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(union > 0, inter / union, 0.0)
-
-
 def inter_over_first(a, b) -> np.ndarray:
-    """(N, M) intersection area over the area of each box of ``a``."""
-    a, b = _boxes(a), _boxes(b)
-    iw = np.clip(np.minimum(a[:, None, 2], b[None, :, 2]) - np.maximum(a[:, None, 0], b[None, :, 0]), 0, None)
-    ih = np.clip(np.minimum(a[:, None, 3], b[None, :, 3]) - np.maximum(a[:, None, 1], b[None, :, 1]), 0, None)
+    """(N, M) intersection area over the area of each box of ``a`` (the devkit's overlap with ignored regions).
+
+    Not an IoU (:func:`monorarp.boxes.iou_matrix`): a detection inside a large DontCare
+    region overlaps it fully even though their IoU is small.
+    """
+    a, b = as_boxes(a), as_boxes(b)
     area = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(area[:, None] > 0, iw * ih / area[:, None], 0.0)
+        return np.where(area[:, None] > 0, intersection(a[:, None, :], b[None, :, :]) / area[:, None], 0.0)
 
 
 @dataclass
@@ -72,7 +58,7 @@ def gt_status(truth: ImageTruth, cls: str, difficulty: str) -> tuple[np.ndarray,
     of_cls = types == cls
     neighbour = types == NEIGHBOUR_CLASS.get(cls, "\0")
     status = np.where(of_cls & ok, 0, np.where(neighbour | of_cls, 1, -1)).astype(int)
-    dc = _boxes(truth.boxes)[types == "dontcare"] if len(types) else np.zeros((0, 4))
+    dc = as_boxes(truth.boxes)[types == "dontcare"] if len(types) else np.zeros((0, 4))
     return status, dc
 
 
@@ -81,13 +67,13 @@ def match_image(truth: ImageTruth, dets: ImageDetections, cls: str, difficulty: 
     """``(outcome, n_valid, n_excused)``: per detection of the class (others: -2) 1 TP, 0 FP, -1 ignored, in
     the order of ``dets``; ``n_valid`` = valid ground-truth boxes not excused; ``n_excused`` the excused ones."""
     status, dc = gt_status(truth, cls, difficulty)
-    gtb = _boxes(truth.boxes)
-    db = _boxes(dets.boxes)
+    gtb = as_boxes(truth.boxes)
+    db = as_boxes(dets.boxes)
     scores = np.asarray(dets.scores, dtype=float).reshape(-1)
     of_cls = np.array([lbl.lower() == cls.lower() for lbl in dets.labels], dtype=bool)
     outcome = np.full(len(db), -2, dtype=int)
     too_small = (db[:, 3] - db[:, 1]) < DIFFICULTIES[difficulty][0]
-    overlap = iou(db, gtb)
+    overlap = iou_matrix(db, gtb)
     dc_cover = inter_over_first(db, dc) if len(dc) else np.zeros((len(db), 0))
     taken = status < 0                                   # boxes of no part are never assigned
     excused = 0

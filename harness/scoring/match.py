@@ -13,32 +13,9 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from monorarp.boxes import as_boxes, iou_matrix
+
 MIN_IOU = 0.5
-
-
-def as_boxes(boxes: Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:
-    """Any sequence of 4-tuples -> float (N, 4) array (empty gives shape (0, 4))."""
-    arr = np.asarray(boxes, dtype=float)
-    return arr.reshape(-1, 4)
-
-
-def iou_matrix(a: Sequence[Sequence[float]] | np.ndarray, b: Sequence[Sequence[float]] | np.ndarray) -> np.ndarray:
-    """(N, M) intersection over union of every box of ``a`` with every box of ``b``.
-
-    Degenerate boxes (zero or negative area) have IoU 0 with everything.
-    """
-    a, b = as_boxes(a), as_boxes(b)
-    ix1 = np.maximum(a[:, None, 0], b[None, :, 0])
-    iy1 = np.maximum(a[:, None, 1], b[None, :, 1])
-    ix2 = np.minimum(a[:, None, 2], b[None, :, 2])
-    iy2 = np.minimum(a[:, None, 3], b[None, :, 3])
-    inter = np.clip(ix2 - ix1, 0, None) * np.clip(iy2 - iy1, 0, None)
-    area_a = np.clip(a[:, 2] - a[:, 0], 0, None) * np.clip(a[:, 3] - a[:, 1], 0, None)
-    area_b = np.clip(b[:, 2] - b[:, 0], 0, None) * np.clip(b[:, 3] - b[:, 1], 0, None)
-    union = area_a[:, None] + area_b[None, :] - inter
-    with np.errstate(divide="ignore", invalid="ignore"):
-        iou = np.where(union > 0, inter / union, 0.0)
-    return iou
 
 
 def match_boxes(gt: Sequence[Sequence[float]] | np.ndarray, est: Sequence[Sequence[float]] | np.ndarray,

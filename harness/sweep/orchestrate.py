@@ -28,9 +28,10 @@ from typing import TYPE_CHECKING
 from harness.sweep.executors import Executor, make_executor
 from harness.sweep.expand import Expansion, RunTask, load_and_expand
 from harness.sweep.report import render_report
-from harness.sweep.summary import collect_rows, write_summary, write_text_atomic
+from harness.sweep.summary import collect_rows, write_summary
 from harness.sweep.worker import METRICS_JSON, RUN_JSON, RunOutcome, describe_error
-from monorarp.io import OutputError
+from monorarp.io import OutputError, write_atomic
+from monorarp.readers import read_json_or_none
 
 if TYPE_CHECKING:
     from harness.frame_cache import FrameCache
@@ -59,9 +60,8 @@ def finished(task: RunTask, runs_dir: Path) -> bool:
     d = runs_dir / task.id
     if not (d / METRICS_JSON).is_file():
         return False
-    try:
-        run = json.loads((d / RUN_JSON).read_text())
-    except (OSError, ValueError):
+    run = read_json_or_none(d / RUN_JSON)
+    if not isinstance(run, dict):
         return False
     return run.get("status") == "ok" and run.get("params") == json.loads(json.dumps(task.params()))
 
@@ -179,7 +179,7 @@ def _run(ex: Executor, expansion: Expansion, spec_path: str | Path, out: Path, r
     try:
         write_summary(out, result.rows, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),
                       headline=spec.metrics)
-        write_text_atomic(out / REPORT_HTML, render_report(result.rows, runs_dir, name=spec.name,
+        write_atomic(out / REPORT_HTML, render_report(result.rows, runs_dir, name=spec.name,
                                                            spec_path=str(spec_path), grid_keys=list(spec.grid),
                                                            headline=spec.metrics, threshold_s=spec.warning_threshold_s))
     except OSError as e:

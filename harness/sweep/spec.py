@@ -28,11 +28,12 @@ import typing
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from harness.config_io import format_validation_error, read_yaml
+from harness.config_io import validate_config
 from harness.scenario import Scenario
 from monorarp.errors import UserError
+from monorarp.readers import read_yaml
 
 DEFAULT_DETECTOR = "centernet"
 _NAME = r"^[A-Za-z0-9][A-Za-z0-9_.+\-]*$"
@@ -273,15 +274,10 @@ class SweepSpec(_Model):
 # ------------------------------------------------------------------- loading
 def parse_sweep_spec(data: Any, source: str | Path = "<sweep spec>") -> SweepSpec:
     """Validate an already-loaded mapping; raises :class:`SweepSpecError`."""
-    if not isinstance(data, dict):
-        raise SweepSpecError(f"{source}: a sweep spec must be a YAML mapping")
-    try:
-        return SweepSpec.model_validate(data)
-    except ValidationError as e:
-        raise SweepSpecError(format_validation_error(source, e)) from None
+    return validate_config(SweepSpec, data, source, SweepSpecError, "sweep spec")
 
 
 def load_sweep_spec(path: str | Path) -> SweepSpec:
     """Read and validate a sweep-spec YAML file (structure only; see :func:`harness.sweep.expand.expand`)."""
-    data = read_yaml(path, SweepSpecError, "sweep spec")
+    data = read_yaml(path, "sweep spec", SweepSpecError)
     return parse_sweep_spec(data, path)

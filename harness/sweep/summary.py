@@ -16,17 +16,15 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from harness.sweep.expand import RunTask, format_value
 from harness.sweep.worker import ERROR_JSON, METRICS_JSON, RUN_JSON
-from monorarp.io import write_json_atomic
+from monorarp.io import write_atomic, write_json_atomic
+from monorarp.readers import read_json_or_none
 
 SUMMARY_JSON = "summary.json"
 SUMMARY_CSV = "summary.csv"
@@ -57,21 +55,14 @@ def deterministic_metrics(flat: Mapping[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in flat.items() if is_deterministic(k)}
 
 
-def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-
-
 def collect_rows(tasks: Sequence[RunTask], runs_dir: Path) -> list[dict[str, Any]]:
     """The summary row of each task from what is on disk in ``runs_dir``."""
     rows = []
     for t in tasks:
         d = runs_dir / t.id
-        run = _read_json(d / RUN_JSON) or {}
-        metrics = _read_json(d / METRICS_JSON)
-        err = _read_json(d / ERROR_JSON) or {}
+        run = read_json_or_none(d / RUN_JSON) or {}
+        metrics = read_json_or_none(d / METRICS_JSON)
+        err = read_json_or_none(d / ERROR_JSON) or {}
         if metrics is not None and run.get("status", "ok") == "ok":
             status, error = "ok", None
         elif run.get("status") == "failed" or err:
@@ -119,23 +110,6 @@ def to_csv(rows: Sequence[Mapping[str, Any]], grid_keys: Sequence[str], headline
     return buf.getvalue()
 
 
-def write_text_atomic(path: Path, text: str) -> None:
-    """Temp file beside ``path`` then ``os.replace``."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_summary(out_dir: Path, rows: Sequence[Mapping[str, Any]], *, name: str, spec_path: str,
                   grid_keys: Sequence[str], headline: Sequence[str] = ()) -> None:
     """Write ``summary.json`` and ``summary.csv`` (each atomically)."""
@@ -143,4 +117,4 @@ def write_summary(out_dir: Path, rows: Sequence[Mapping[str, Any]], *, name: str
     write_json_atomic(out_dir / SUMMARY_JSON, {"version": 1, "name": name, "spec": spec_path,
                                                "grid_keys": list(grid_keys), "headline_metrics": list(headline),
                                                "counts": {"runs": len(rows), **counts}, "runs": list(rows)})
-    write_text_atomic(out_dir / SUMMARY_CSV, to_csv(rows, grid_keys, headline))
+    write_atomic(out_dir / SUMMARY_CSV, to_csv(rows, grid_keys, headline))

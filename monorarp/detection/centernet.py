@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from monorarp.boxes import iou
 from monorarp.camera import CameraModel
 from monorarp.detection.bottom_edge import refine_bottom as refine_bottom_edges
 from monorarp.detection.fovea import Fovea, merge
@@ -66,15 +67,6 @@ def is_centernet_layout(session) -> bool:
     return {o.name for o in outputs(session)} >= set(OUTPUT_NAMES)
 
 
-def _box_iou_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU of (..., 4) boxes ``a`` with broadcastable ``b``."""
-    iw = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]), 0, None)
-    ih = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]), 0, None)
-    inter = iw * ih
-    area = lambda x: np.clip(x[..., 2] - x[..., 0], 0, None) * np.clip(x[..., 3] - x[..., 1], 0, None)  # noqa: E731
-    return inter / np.maximum(area(a) + area(b) - inter, 1e-9)
-
-
 def decode(heatmap: np.ndarray, ltrb: np.ndarray, stride: int, score_threshold: float,
            max_detections: int = 100, agree_iou: float = 0.6) -> tuple[np.ndarray, np.ndarray]:
     """Net outputs -> (boxes (K, 4) in input pixels, scores (K,)), sorted by score.
@@ -101,7 +93,7 @@ def decode(heatmap: np.ndarray, ltrb: np.ndarray, stride: int, score_threshold: 
     e = ltrb[:, ni, nj].astype(np.float64)                          # (4, K, 9)
     boxes = np.stack([cx - e[0], cy - e[1], cx + e[2], cy + e[3]], axis=-1)  # (K, 9, 4)
     centre = boxes[:, 4:5, :]
-    wts = hm[ni, nj].astype(np.float64) * inside * (_box_iou_rows(boxes, centre) > agree_iou)
+    wts = hm[ni, nj].astype(np.float64) * inside * (iou(boxes, centre) > agree_iou)
     wts[:, 4] = np.maximum(wts[:, 4], 1e-6)
     merged = (boxes * wts[..., None]).sum(1) / wts.sum(1, keepdims=True)
     return merged, sc.astype(np.float64)

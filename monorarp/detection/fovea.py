@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monorarp.tracking.association import iou_matrix
+from monorarp.boxes import iou_matrix
 
 
 @dataclass(frozen=True)

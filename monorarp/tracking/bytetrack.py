@@ -30,9 +30,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.tracking.association import assign, iou_matrix
+from monorarp.boxes import iou_matrix
+from monorarp.tracking.association import assign
+from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.tracking.kalman_box import BoxKalman
-from monorarp.tracking.sort import detections_array, to_tracks
 from monorarp.types import Detection, Track
 
 TRACKED, LOST = 0, 1
@@ -47,7 +48,7 @@ def _match(track_boxes: np.ndarray, det_boxes: np.ndarray, min_iou: float, det_s
     return assign(1.0 - sim, 1.0 - min_iou)
 
 
-class ByteTracker:
+class ByteTracker(BookTracker):
     """ByteTrack; ``update(image, detections, t) -> list[Track]`` (``image``, ``t`` unused: one step per call).
 
     Parameters (see the module docstring): ``high_thresh``, ``low_thresh``,
@@ -73,65 +74,50 @@ class ByteTracker:
     def reset(self) -> None:
         """Forget every track; ids start again from 0."""
         self._kf = BoxKalman()
-        self._ids = np.empty(0, dtype=np.int64)
-        self._state = np.empty(0, dtype=np.int64)
-        self._active = np.empty(0, dtype=bool)         # confirmed
-        self._start = np.empty(0, dtype=np.int64)      # frame of birth
-        self._end = np.empty(0, dtype=np.int64)        # frame of the last match
-        self._age = np.empty(0, dtype=np.int64)
-        self._score = np.empty(0)
-        self._labels: list[str] = []
-        self._next_id = 0
-        self._frame = 0
-
-    @property
-    def n_tracks(self) -> int:
-        return len(self._ids)
+        # state: TRACKED or LOST; active: confirmed; start / end: frame of birth / of the last match
+        self._book = TrackBook(state=((), np.int64), active=((), bool), start=((), np.int64), end=((), np.int64))
 
     def _keep(self, keep: np.ndarray) -> None:
         self._kf.keep(keep)
-        for name in ("_ids", "_state", "_active", "_start", "_end", "_age", "_score"):
-            setattr(self, name, getattr(self, name)[keep])
-        self._labels = [lab for lab, k in zip(self._labels, keep) if k]
+        self._book.keep(keep)
 
     def _hit(self, rows: np.ndarray, boxes: np.ndarray, scores: np.ndarray, labels: list[str]) -> None:
         """Correct tracks ``rows`` with their matched detections: tracked, confirmed, seen now."""
+        book = self._book
         self._kf.update(rows, boxes)
-        self._state[rows] = TRACKED
-        self._active[rows] = True
-        self._end[rows] = self._frame
-        self._score[rows] = scores
-        for r, lab in zip(rows, labels):
-            self._labels[r] = lab
+        book.state[rows] = TRACKED
+        book.active[rows] = True
+        book.end[rows] = book.frames
+        book.hit(rows, scores, labels)
 
     def update(self, image: np.ndarray | None, detections: Sequence[Detection], t: float) -> list[Track]:
-        self._frame += 1
+        book = self._book
+        book.step()
         boxes, scores = detections_array(detections)
         labels = [d.label for d in detections]
         high = np.flatnonzero(scores > self.high_thresh)
         low = np.flatnonzero((scores > self.low_thresh) & (scores <= self.high_thresh))
 
-        self._kf.x[self._state == LOST, 6] = 0.0
+        self._kf.x[book.state == LOST, 6] = 0.0
         pred = self._kf.predict()
-        self._age += 1
 
         # first association: confirmed tracks (tracked or lost) vs high detections
-        pool = np.flatnonzero(self._active)
+        pool = np.flatnonzero(book.active)
         m, un_p, un_h = _match(pred[pool], boxes[high], self.match_iou, scores[high] if self.fuse_score else None)
         rows, cols = pool[m[:, 0]], high[m[:, 1]]
         self._hit(rows, boxes[cols], scores[cols], [labels[c] for c in cols])
 
         # second association: still-tracked leftovers vs low detections; unmatched ones become lost
         rest = pool[un_p]
-        rest = rest[self._state[rest] == TRACKED]
+        rest = rest[book.state[rest] == TRACKED]
         m2, un_r, _ = _match(pred[rest], boxes[low], self.second_iou)
         rows, cols = rest[m2[:, 0]], low[m2[:, 1]]
         self._hit(rows, boxes[cols], scores[cols], [labels[c] for c in cols])
-        self._state[rest[un_r]] = LOST
+        book.state[rest[un_r]] = LOST
 
         # unconfirmed tracks vs the remaining high detections; unmatched ones are removed
         left = high[un_h]
-        unconf = np.flatnonzero(~self._active)
+        unconf = np.flatnonzero(~book.active)
         m3, un_u, un_l = _match(pred[unconf], boxes[left], self.unconfirmed_iou,
                                 scores[left] if self.fuse_score else None)
         rows, cols = unconf[m3[:, 0]], left[m3[:, 1]]
@@ -139,34 +125,26 @@ class ByteTracker:
         keep = np.ones(self.n_tracks, dtype=bool)
         keep[unconf[un_u]] = False
         # lost tracks past the buffer are removed
-        keep &= ~((self._state == LOST) & (self._frame - self._end > self.track_buffer))
+        keep &= ~((book.state == LOST) & (book.frames - book.end > self.track_buffer))
         self._keep(keep)
 
         # new tracks from confident unmatched high detections
         new = left[un_l]
         new = new[scores[new] >= self.new_track_thresh]
         if len(new):
-            k = len(new)
             self._kf.add(boxes[new])
-            self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + k)])
-            self._next_id += k
-            self._state = np.concatenate([self._state, np.full(k, TRACKED)])
-            self._active = np.concatenate([self._active, np.full(k, self._frame == 1)])
-            self._start = np.concatenate([self._start, np.full(k, self._frame)])
-            self._end = np.concatenate([self._end, np.full(k, self._frame)])
-            self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
-            self._score = np.concatenate([self._score, scores[new]])
-            self._labels.extend(labels[i] for i in new)
+            book.add(scores[new], [labels[i] for i in new], state=TRACKED, active=book.frames == 1,
+                     start=book.frames, end=book.frames)
 
         self._remove_duplicates()
-        show = np.flatnonzero((self._state == TRACKED) & self._active)
-        return to_tracks(self._ids[show], self._kf.boxes()[show], self._score[show],
-                         [self._labels[i] for i in show], self._age[show])
+        show = np.flatnonzero((book.state == TRACKED) & book.active)
+        return book.tracks(show, self._kf.boxes()[show])
 
     def _remove_duplicates(self) -> None:
         """A tracked and a lost track with IoU > 0.85: drop the one that started later (reference rule)."""
-        tracked = np.flatnonzero((self._state == TRACKED) & self._active)
-        lost = np.flatnonzero(self._state == LOST)
+        book = self._book
+        tracked = np.flatnonzero((book.state == TRACKED) & book.active)
+        lost = np.flatnonzero(book.state == LOST)
         if not len(tracked) or not len(lost):
             return
         boxes = self._kf.boxes()
@@ -176,7 +154,7 @@ class ByteTracker:
         keep = np.ones(self.n_tracks, dtype=bool)
         for a, b in pairs:
             i, j = tracked[a], lost[b]
-            if self._frame - self._start[i] > self._frame - self._start[j]:
+            if book.frames - book.start[i] > book.frames - book.start[j]:
                 keep[j] = False
             else:
                 keep[i] = False

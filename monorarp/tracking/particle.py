@@ -12,7 +12,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.tracking.association import associate_iou, iou_matrix
+from monorarp.boxes import intersection, iou_matrix
+from monorarp.tracking.association import associate_iou
+from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.types import Detection, Track
 
 _MIN_SIZE = 1.0  # px: particles never shrink a box below this
@@ -59,7 +61,7 @@ def fit_velocity(z: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.where(den[:, None] > 0, num / np.where(den > 0, den, 1.0)[:, None], 0.0)
 
 
-class ParticleTracker:
+class ParticleTracker(BookTracker):
     """Multi-object particle tracker; ``update(image, detections, t) -> list[Track]``.
 
     Parameters (noise scales are fractions of the box's width/height):
@@ -119,42 +121,32 @@ class ParticleTracker:
     def reset(self) -> None:
         """Forget every track; ids start again from 0; the RNG is re-seeded."""
         self._rng = np.random.default_rng(self.seed)
-        n = self.n_particles
-        self._particles = np.empty((0, n, 4))   # (T, N, 4) cx, cy, w, h
-        self._mean = np.empty((0, 4))           # posterior mean per track
-        self._vel = np.empty((0, 4))            # box velocity per track (px/s)
-        self._out = np.empty((0, 4))            # output box (x1, y1, x2, y2)
-        self._ids = np.empty(0, dtype=np.int64)
-        self._hits = np.empty(0, dtype=np.int64)
-        self._misses = np.empty(0, dtype=np.int64)
-        self._age = np.empty(0, dtype=np.int64)
-        self._score = np.empty(0)
-        self._last_det = np.empty((0, 4))      # last matched detection box (x1, y1, x2, y2)
-        self._hist = np.empty((0, self.vel_window, 4))  # last matched detections (cxcywh), ring buffer
-        self._hist_t = np.empty((0, self.vel_window))   # their frame times (NaN: empty slot)
-        self._labels: list[str] = []
-        self._next_id = 0
-        self._frames = 0
+        n, w, f = self.n_particles, self.vel_window, np.float64
+        self._book = TrackBook(
+            particles=((n, 4), f),      # (T, N, 4) cx, cy, w, h
+            mean=((4,), f),             # posterior mean per track
+            vel=((4,), f),              # box velocity per track (px/s)
+            out=((4,), f),              # output box (x1, y1, x2, y2)
+            hits=((), np.int64), misses=((), np.int64),
+            last_det=((4,), f),         # last matched detection box (x1, y1, x2, y2)
+            hist=((w, 4), f),           # last matched detections (cxcywh), ring buffer
+            hist_t=((w,), f))           # their frame times (NaN: empty slot)
         self._t_last: float | None = None
-
-    @property
-    def n_tracks(self) -> int:
-        return len(self._ids)
 
     # ---------------------------------------------------------------- stages
     def _predict(self, dt: float) -> None:
         """Move every particle by its track's velocity * dt plus size-relative Gaussian noise."""
         if not self.n_tracks:
             return
-        sizes = np.maximum(self._mean[:, [2, 3, 2, 3]], _MIN_SIZE)           # (T, 4)
-        noise = self._rng.standard_normal(self._particles.shape) * (sizes * self.noise_scale)[:, None, :]
-        self._particles = self._particles + (self._vel * dt)[:, None, :] + noise
-        self._particles[..., 2:] = np.maximum(self._particles[..., 2:], _MIN_SIZE)
-        self._mean = self._particles.mean(axis=1)
+        sizes = np.maximum(self._book.mean[:, [2, 3, 2, 3]], _MIN_SIZE)           # (T, 4)
+        noise = self._rng.standard_normal(self._book.particles.shape) * (sizes * self.noise_scale)[:, None, :]
+        self._book.particles = self._book.particles + (self._book.vel * dt)[:, None, :] + noise
+        self._book.particles[..., 2:] = np.maximum(self._book.particles[..., 2:], _MIN_SIZE)
+        self._book.mean = self._book.particles.mean(axis=1)
 
     def _update(self, rows: np.ndarray, z: np.ndarray) -> None:
         """Weight, average and resample the particles of tracks ``rows`` given detections ``z`` (cxcywh)."""
-        p = self._particles[rows]                                            # (M, N, 4)
+        p = self._book.particles[rows]                                            # (M, N, 4)
         sigma = np.maximum(z[:, [2, 3, 2, 3]], _MIN_SIZE) * self.meas_noise  # (M, 4)
         loglik = -0.5 * np.sum(((p - z[:, None, :]) / sigma[:, None, :]) ** 2, axis=2)
         w = np.exp(loglik - loglik.max(axis=1, keepdims=True))
@@ -162,14 +154,14 @@ class ParticleTracker:
         new_mean = np.einsum("mn,mnk->mk", w, p)
         idx = systematic_resample(w, self._rng)
         resampled = p[np.arange(len(rows))[:, None], idx]                   # fancy indexing: a new array
-        self._particles[rows] = resampled
-        self._mean[rows] = new_mean
+        self._book.particles[rows] = resampled
+        self._book.mean[rows] = new_mean
         # Velocity: least-squares slope of the last vel_window matched detections against frame time.
         # Ring buffer: hit number h (0 = the spawning detection) goes to slot h % vel_window; the fit
         # does not depend on the order of the slots.
-        slot = self._hits[rows] % self.vel_window
-        self._hist[rows, slot], self._hist_t[rows, slot] = z, self._t_last
-        self._vel[rows] = fit_velocity(self._hist[rows], self._hist_t[rows])
+        slot = self._book.hits[rows] % self.vel_window
+        self._book.hist[rows, slot], self._book.hist_t[rows, slot] = z, self._t_last
+        self._book.vel[rows] = fit_velocity(self._book.hist[rows], self._book.hist_t[rows])
 
     def _spawn(self, z: np.ndarray, scores: np.ndarray, labels: list[str]) -> None:
         """Start tentative tracks at detections ``z`` (cxcywh)."""
@@ -179,33 +171,15 @@ class ParticleTracker:
         sizes = np.maximum(z[:, [2, 3, 2, 3]], _MIN_SIZE) * self.meas_noise
         parts = z[:, None, :] + self._rng.standard_normal((k, self.n_particles, 4)) * sizes[:, None, :]
         parts[..., 2:] = np.maximum(parts[..., 2:], _MIN_SIZE)
-        self._particles = np.concatenate([self._particles, parts])
-        self._mean = np.concatenate([self._mean, z])
-        self._vel = np.concatenate([self._vel, np.zeros((k, 4))])
-        self._out = np.concatenate([self._out, cxcywh_to_boxes(z)])
-        self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + k)])
-        self._next_id += k
-        self._hits = np.concatenate([self._hits, np.ones(k, dtype=np.int64)])
-        self._misses = np.concatenate([self._misses, np.zeros(k, dtype=np.int64)])
-        self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
-        self._score = np.concatenate([self._score, scores])
-        self._last_det = np.concatenate([self._last_det, cxcywh_to_boxes(z)])
         hist = np.zeros((k, self.vel_window, 4))
         hist_t = np.full((k, self.vel_window), np.nan)
         hist[:, 0], hist_t[:, 0] = z, self._t_last                    # hit 0 -> slot 0
-        self._hist = np.concatenate([self._hist, hist])
-        self._hist_t = np.concatenate([self._hist_t, hist_t])
-        self._labels.extend(labels)
-
-    def _keep(self, keep: np.ndarray) -> None:
-        for name in ("_particles", "_mean", "_vel", "_out", "_ids", "_hits", "_misses", "_age", "_score",
-                     "_last_det", "_hist", "_hist_t"):
-            setattr(self, name, getattr(self, name)[keep])
-        self._labels = [lab for lab, k in zip(self._labels, keep) if k]
+        self._book.add(scores, labels, particles=parts, mean=z, out=cxcywh_to_boxes(z), hits=1,
+                       last_det=cxcywh_to_boxes(z), hist=hist, hist_t=hist_t)
 
     def _leaving(self, width: int) -> np.ndarray:
         """Tracks whose last detection touched the left/right image border while moving outwards."""
-        b, vx = self._last_det, self._vel[:, 0]
+        b, vx = self._book.last_det, self._book.vel[:, 0]
         left = (b[:, 0] <= -0.5 + self.edge_px) & (vx < 0)
         right = (b[:, 2] >= width - 0.5 - self.edge_px) & (vx > 0)
         return left | right
@@ -219,10 +193,7 @@ class ParticleTracker:
         there, it would hide that farther one and be detected itself; the track is more likely
         a duplicate or a part of that vehicle (a truck's lower half, a car's window).
         """
-        inter = (np.clip(np.minimum(boxes[:, None, 2], det_boxes[None, :, 2])
-                         - np.maximum(boxes[:, None, 0], det_boxes[None, :, 0]), 0.0, None)
-                 * np.clip(np.minimum(boxes[:, None, 3], det_boxes[None, :, 3])
-                           - np.maximum(boxes[:, None, 1], det_boxes[None, :, 1]), 0.0, None))
+        inter = intersection(boxes[:, None, :], det_boxes[None, :, :])
         area = np.maximum((boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1]), 1e-9)
         cover = inter / area[:, None]
         nearer = det_boxes[None, :, 3] > boxes[:, None, 3]
@@ -239,16 +210,16 @@ class ParticleTracker:
         """
         dt = 0.0 if self._t_last is None else float(t) - self._t_last
         self._t_last = float(t)
-        self._frames += 1
+        book = self._book
+        book.step()
         n_det = len(detections)
-        det_boxes = np.array([d.box for d in detections], dtype=float).reshape(n_det, 4)
-        det_scores = np.array([d.score for d in detections], dtype=float)
+        det_boxes, det_scores = detections_array(detections)
 
         self._predict(dt)
-        pred = cxcywh_to_boxes(self._mean)
+        pred = cxcywh_to_boxes(book.mean)
         # Active tracks (tentative, tracked, coasting) first; lost ones only get what is left over.
-        active = np.flatnonzero(self._misses <= self.max_coast)
-        lost = np.flatnonzero(self._misses > self.max_coast)
+        active = np.flatnonzero(book.misses <= self.max_coast)
+        lost = np.flatnonzero(book.misses > self.max_coast)
         matches, _, un_d, _ = associate_iou(pred[active], det_boxes, self.min_iou)
         rows, cols = active[matches[:, 0]], matches[:, 1]
         if len(lost) and len(un_d):
@@ -261,22 +232,20 @@ class ParticleTracker:
         if len(rows):
             z = boxes_to_cxcywh(det_boxes[cols])
             self._update(rows, z)
-            self._out[rows] = det_boxes[cols] if self.box_output == "detection" else cxcywh_to_boxes(self._mean[rows])
-            self._last_det[rows] = det_boxes[cols]
-            self._score[rows] = det_scores[cols]
-            for r, c in zip(rows, cols):
-                self._labels[r] = detections[c].label
+            book.out[rows] = (det_boxes[cols] if self.box_output == "detection"
+                              else cxcywh_to_boxes(book.mean[rows]))
+            book.last_det[rows] = det_boxes[cols]
+            book.hit(rows, det_scores[cols], [detections[c].label for c in cols])
         coast = ~matched
-        self._out[coast] = cxcywh_to_boxes(self._mean[coast])
-        self._hits[matched] += 1
-        self._misses[matched] = 0
-        self._misses[coast] += 1
-        self._age += 1
+        book.out[coast] = cxcywh_to_boxes(book.mean[coast])
+        book.hits[matched] += 1
+        book.misses[matched] = 0
+        book.misses[coast] += 1
 
-        confirmed = self._hits >= self.min_hits
-        alive = np.where(confirmed, self._misses <= max(self.max_coast, self.max_lost), self._misses == 0)
+        confirmed = book.hits >= self.min_hits
+        alive = np.where(confirmed, book.misses <= max(self.max_coast, self.max_lost), book.misses == 0)
         if not alive.all():
-            self._keep(alive)
+            book.keep(alive)
 
         new = un_d[det_scores[un_d] >= self.min_score] if len(un_d) else un_d
         if len(new) and len(cols):
@@ -285,16 +254,11 @@ class ParticleTracker:
         if len(new):
             self._spawn(boxes_to_cxcywh(det_boxes[new]), det_scores[new], [detections[i].label for i in new])
 
-        show = ((self._hits >= self.min_hits) | (self._frames <= self.min_hits)) & (self._misses <= self.max_coast)
+        show = ((book.hits >= self.min_hits) | book.early(self.min_hits)) & (book.misses <= self.max_coast)
         if image is not None and self.edge_px >= 0:
-            show &= (self._misses == 0) | ~self._leaving(image.shape[1])
-        hide = show & (self._misses > 0)
+            show &= (book.misses == 0) | ~self._leaving(image.shape[1])
+        hide = show & (book.misses > 0)
         if hide.any() and n_det:
-            show[hide] = ~self._covered(self._out[hide], det_boxes)
-        out = []
-        for i in np.flatnonzero(show):
-            b = self._out[i]
-            out.append(Track(id=int(self._ids[i]), box=(float(b[0]), float(b[1]), float(b[2]), float(b[3])),
-                             score=float(self._score[i]), label=self._labels[i],
-                             coasting=bool(self._misses[i] > 0), age=int(self._age[i])))
-        return out
+            show[hide] = ~self._covered(book.out[hide], det_boxes)
+        rows = np.flatnonzero(show)
+        return book.tracks(rows, book.out[rows], coasting=book.misses[rows] > 0)

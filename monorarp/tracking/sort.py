@@ -22,29 +22,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from monorarp.tracking.association import associate_iou
+from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.tracking.kalman_box import BoxKalman
 from monorarp.types import Detection, Track
 
 
-def detections_array(detections: Sequence[Detection]) -> tuple[np.ndarray, np.ndarray]:
-    """Boxes (N, 4) and scores (N,) of ``detections``."""
-    n = len(detections)
-    return (np.array([d.box for d in detections], dtype=float).reshape(n, 4),
-            np.array([d.score for d in detections], dtype=float))
-
-
-def to_tracks(ids, boxes, scores, labels, ages, coasting=None) -> list[Track]:
-    """Rows of arrays -> :class:`Track` records."""
-    out = []
-    for i in range(len(ids)):
-        b = boxes[i]
-        out.append(Track(id=int(ids[i]), box=(float(b[0]), float(b[1]), float(b[2]), float(b[3])),
-                         score=float(scores[i]), label=labels[i], age=int(ages[i]),
-                         coasting=bool(coasting[i]) if coasting is not None else False))
-    return out
-
-
-class SortTracker:
+class SortTracker(BookTracker):
     """SORT; ``update(image, detections, t) -> list[Track]`` (``image`` and ``t`` unused: one step per call).
 
     Parameters:
@@ -67,65 +50,43 @@ class SortTracker:
     def reset(self) -> None:
         """Forget every track; ids start again from 0."""
         self._kf = BoxKalman()
-        self._ids = np.empty(0, dtype=np.int64)
-        self._streak = np.empty(0, dtype=np.int64)        # consecutive matched frames
-        self._since = np.empty(0, dtype=np.int64)         # frames since the last match
-        self._age = np.empty(0, dtype=np.int64)
-        self._score = np.empty(0)
-        self._labels: list[str] = []
-        self._next_id = 0
-        self._frames = 0
-
-    @property
-    def n_tracks(self) -> int:
-        return len(self._ids)
+        # streak: consecutive matched frames; since: frames since the last match
+        self._book = TrackBook(streak=((), np.int64), since=((), np.int64))
 
     def _keep(self, keep: np.ndarray) -> None:
         self._kf.keep(keep)
-        for name in ("_ids", "_streak", "_since", "_age", "_score"):
-            setattr(self, name, getattr(self, name)[keep])
-        self._labels = [lab for lab, k in zip(self._labels, keep) if k]
+        self._book.keep(keep)
 
     def update(self, image: np.ndarray | None, detections: Sequence[Detection], t: float) -> list[Track]:
-        self._frames += 1
+        book = self._book
+        book.step()
         dets = [d for d in detections if d.score >= self.score_threshold]
         boxes, scores = detections_array(dets)
 
         pred = self._kf.predict()
-        self._age += 1
         # A track whose prediction is no longer a finite box is dropped (SORT's NaN check).
         finite = np.isfinite(pred).all(axis=1)
         if not finite.all():
             self._keep(finite)
             pred = pred[finite]
-        self._since += 1
-        self._streak[self._since > 1] = 0                 # missed the previous frame too
+        book.since += 1
+        book.streak[book.since > 1] = 0                   # missed the previous frame too
 
         matches, _, un_d, _ = associate_iou(pred, boxes, self.min_iou)
         rows, cols = matches[:, 0], matches[:, 1]
         self._kf.update(rows, boxes[cols])
-        self._since[rows] = 0
-        self._streak[rows] += 1
-        self._score[rows] = scores[cols]
-        for r, c in zip(rows, cols):
-            self._labels[r] = dets[c].label
+        book.since[rows] = 0
+        book.streak[rows] += 1
+        book.hit(rows, scores[cols], [dets[c].label for c in cols])
 
         if len(un_d):
-            k = len(un_d)
             self._kf.add(boxes[un_d])
-            self._ids = np.concatenate([self._ids, np.arange(self._next_id, self._next_id + k)])
-            self._next_id += k
-            self._streak = np.concatenate([self._streak, np.zeros(k, dtype=np.int64)])   # as SORT: 0 at birth
-            self._since = np.concatenate([self._since, np.zeros(k, dtype=np.int64)])
-            self._age = np.concatenate([self._age, np.zeros(k, dtype=np.int64)])
-            self._score = np.concatenate([self._score, scores[un_d]])
-            self._labels.extend(dets[i].label for i in un_d)
+            book.add(scores[un_d], [dets[i].label for i in un_d])   # streak 0 at birth, as SORT
 
-        show = (self._since == 0) & ((self._streak >= self.min_hits) | (self._frames <= self.min_hits))
+        show = (book.since == 0) & ((book.streak >= self.min_hits) | book.early(self.min_hits))
         idx = np.flatnonzero(show)
-        out = to_tracks(self._ids[idx], self._kf.boxes()[idx], self._score[idx],
-                        [self._labels[i] for i in idx], self._age[idx])
-        alive = self._since <= self.max_age
+        out = book.tracks(idx, self._kf.boxes()[idx])
+        alive = book.since <= self.max_age
         if not alive.all():
             self._keep(alive)
         return out
