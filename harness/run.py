@@ -39,7 +39,7 @@ from harness.scoring.records import write_csv
 from harness.scoring.tables import summary_table  # noqa: F401  (re-exported for callers)
 from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
-from monorarp.registry import build, get_factory, instantiate
+from monorarp.registry import build
 from monorarp.types import Frame, FrameResult, ObjectState, RiskEstimate
 
 if TYPE_CHECKING:
@@ -57,30 +57,6 @@ PRELOAD_BYTES = 1 << 30
 
 
 # ---------------------------------------------------------------------------- pipeline
-def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pipeline:
-    """A :class:`Pipeline` from ``config``; the detector may also be an ``.onnx`` path or ``"oracle"``.
-
-    Every component name is resolved before anything is built, so an unknown
-    name is reported before a model is loaded. ``camera`` is passed to every
-    factory that takes a ``camera`` argument. Raises
-    :class:`~monorarp.errors.UserError` for unknown names or unusable model files.
-    """
-    import harness.oracle  # noqa: F401  (registers the "oracle" detector)
-    from monorarp.detection import load_detector
-
-    cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
-    onnx = cfg.detector.name.lower().endswith(".onnx")
-    stages = {"detector": None if onnx else cfg.detector, "tracker": cfg.tracker, "state": cfg.state,
-              "risk": cfg.risk, "ego_speed": cfg.ego_speed, "warning": cfg.warning, "horizon": cfg.horizon}
-    factories = {k: get_factory(k, c.name) for k, c in stages.items() if c is not None}
-    built = {k: instantiate(f, stages[k].kwargs, camera) for k, f in factories.items()}
-    if onnx:
-        built["detector"] = load_detector(cfg.detector.name, camera=camera, **cfg.detector.kwargs)
-    return Pipeline(detector=built["detector"], tracker=built["tracker"], state=built["state"],
-                    risk=built["risk"], ego_speed=built.get("ego_speed"), warning=built.get("warning"),
-                    horizon=built.get("horizon"))
-
-
 def describe(cfg: PipelineConfig) -> dict:
     """Component names and kwargs for ``metrics["config"]``."""
     comps = {k: getattr(cfg, k) for k in ("detector", "tracker", "state", "risk", "ego_speed", "warning", "horizon")}
@@ -171,7 +147,9 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
         PipelineConfig.model_validate(pipeline_config)
     cfg = with_scenario_markings(cfg, scenario)
     camera = scenario.camera.model()
-    pipeline = build_pipeline(cfg, camera)     # bad component names / model files fail before any output
+    import harness.oracle  # noqa: F401  (registers the "oracle" detector)
+
+    pipeline = Pipeline.from_config(cfg, camera)     # bad component names / model files fail before any output
     true_speeds: dict[float, float] = {}
     from monorarp.pipeline import _takes_ego_speed
 
