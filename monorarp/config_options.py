@@ -21,12 +21,11 @@ from collections.abc import Iterable
 from typing import Any
 
 from monorarp import registry
-from monorarp.ego_speed import DEFAULT_EGO_SPEED
 from monorarp.errors import UserError
 from monorarp.pipeline import ComponentConfig, PipelineConfig
 
 STAGES = ("detector", "tracker", "state", "risk", "ego_speed", "horizon")
-CLI_EGO_SPEED = DEFAULT_EGO_SPEED       # the run/video commands' ego-speed stage unless --ego-speed none
+CLI_EGO_SPEED = "ground_track"          # the run/video commands' ego-speed stage unless --ego-speed none
 VELOCITIES = ("kalman", "difference")
 DEFAULT_VELOCITY = "kalman"
 CALIBRATED = "calibrated"               # --horizon: the calibration's horizon, no horizon stage
@@ -67,6 +66,7 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
     if unknown:
         raise ValueError(f"no options for stages {sorted(unknown)}; options exist for {', '.join(STAGES)}")
     defaults = defaults or {}
+    p.set_defaults(_pipeline_stages=tuple(k for k in STAGES if k in stages))   # read by pipeline_config
 
     def default(kind: str) -> str:
         return defaults.get(kind, default_name(kind))
@@ -117,8 +117,9 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
     from monorarp.detection import is_model_path
 
     cfg = base if base is not None else PipelineConfig()
+    stages = getattr(args, "_pipeline_stages", ())
     update: dict[str, ComponentConfig | None] = {}
-    if hasattr(args, "detector"):
+    if "detector" in stages:
         name, kw = str(args.detector), {}
         refine = getattr(args, "refine_bottom", None)
         if refine is not None:
@@ -126,16 +127,16 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
                 raise UserError(f"--refine-bottom applies to the CenterNet detector, not {name!r}")
             kw["refine_bottom"] = refine == "on"
         update["detector"] = _component("detector", "--detector", name, kw)
-    if hasattr(args, "tracker"):
+    if "tracker" in stages:
         update["tracker"] = _component("tracker", "--tracker", args.tracker)
-    if hasattr(args, "velocity"):
+    if "state" in stages:
         update["state"] = ComponentConfig(name=cfg.state.name, kwargs={**cfg.state.kwargs, "velocity": args.velocity})
-    if hasattr(args, "risk"):
+    if "risk" in stages:
         update["risk"] = _component("risk", "--risk", args.risk)
-    if hasattr(args, "ego_speed"):
+    if "ego_speed" in stages:
         ego = str(args.ego_speed)
         update["ego_speed"] = None if ego.lower() == NONE else _component("ego_speed", "--ego-speed", ego)
-    if hasattr(args, "horizon"):
+    if "horizon" in stages:
         update["horizon"] = None if args.horizon == CALIBRATED else _component("horizon", "--horizon", args.horizon)
     return cfg.model_copy(update=update)
 
