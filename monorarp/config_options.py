@@ -99,10 +99,11 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
                                           f"that pitches on its mount; default: {CALIBRATED})"))
 
 
-def _component(kind: str, option: str, name: str, kwargs: dict[str, Any] | None = None) -> ComponentConfig:
+def _component(kind: str, option: str, name: str, kwargs: dict[str, Any] | None = None,
+               check: bool = True) -> ComponentConfig:
     from monorarp.detection import is_model_path
 
-    if not (kind == "detector" and is_model_path(name)):
+    if check and not (kind == "detector" and is_model_path(name)):
         try:
             registry.get_factory(kind, name)
         except registry.UnknownComponentError as e:
@@ -110,10 +111,11 @@ def _component(kind: str, option: str, name: str, kwargs: dict[str, Any] | None 
     return ComponentConfig(name=name, kwargs=kwargs or {})
 
 
-def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None) -> PipelineConfig:
+def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None, check: bool = True) -> PipelineConfig:
     """The :class:`PipelineConfig` the options of :func:`add_pipeline_options` describe (stages without
     options as in ``base``, default :class:`PipelineConfig`). Raises :class:`UserError` (one line naming
-    the option) for an unknown name or an option that does not apply."""
+    the option) for an option that does not apply and, with ``check``, for an unknown name (without it,
+    :meth:`Pipeline.from_config` refuses unknown names, for a command that checks its inputs first)."""
     from monorarp.detection import is_model_path
 
     cfg = base if base is not None else PipelineConfig()
@@ -126,18 +128,19 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
             if name != "centernet" and not is_model_path(name):
                 raise UserError(f"--refine-bottom applies to the CenterNet detector, not {name!r}")
             kw["refine_bottom"] = refine == "on"
-        update["detector"] = _component("detector", "--detector", name, kw)
+        update["detector"] = _component("detector", "--detector", name, kw, check)
     if "tracker" in stages:
-        update["tracker"] = _component("tracker", "--tracker", args.tracker)
+        update["tracker"] = _component("tracker", "--tracker", args.tracker, check=check)
     if "state" in stages:
         update["state"] = ComponentConfig(name=cfg.state.name, kwargs={**cfg.state.kwargs, "velocity": args.velocity})
     if "risk" in stages:
-        update["risk"] = _component("risk", "--risk", args.risk)
+        update["risk"] = _component("risk", "--risk", args.risk, check=check)
     if "ego_speed" in stages:
         ego = str(args.ego_speed)
-        update["ego_speed"] = None if ego.lower() == NONE else _component("ego_speed", "--ego-speed", ego)
+        update["ego_speed"] = None if ego.lower() == NONE else _component("ego_speed", "--ego-speed", ego, check=check)
     if "horizon" in stages:
-        update["horizon"] = None if args.horizon == CALIBRATED else _component("horizon", "--horizon", args.horizon)
+        update["horizon"] = None if args.horizon == CALIBRATED else _component("horizon", "--horizon", args.horizon,
+                                                                                   check=check)
     return cfg.model_copy(update=update)
 
 

@@ -89,8 +89,6 @@ def test_onnx_path_is_the_detector_name_and_builds(tmp_path):
 
 # ------------------------------------------------------------------------- refusals
 @pytest.mark.parametrize("argv, option", [
-    (["video", "in.mp4", "--camera", "c.yaml", "--tracker", "nope"], "--tracker"),
-    (["video", "in.mp4", "--camera", "c.yaml", "--risk", "nope"], "--risk"),
     (["run", "missing.yaml", "--risk", "nope"], "--risk"),
     (["run", "missing.yaml", "--ego-speed", "nope"], "--ego-speed"),
     (["run", "missing.yaml", "--horizon", "nope"], "--horizon"),
@@ -102,6 +100,13 @@ def test_unknown_name_is_one_line_exit_2(argv, option, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert f"{option}: unknown" in err and "available:" in err
+
+
+def test_video_leaves_names_to_the_run_after_its_input_checks(tmp_path, capsys):
+    args = parse("video", "in.mp4", "--camera", "c.yaml", "--tracker", "nope")
+    assert pipeline_config(args, check=False).tracker == C("nope")
+    assert main(["video", str(tmp_path / "absent.mp4"), "--camera", "c.yaml", "--tracker", "nope"]) == 2
+    assert "nope" not in capsys.readouterr().err     # the missing camera/input is the error reported
 
 
 def test_options_that_do_not_apply_are_refused():

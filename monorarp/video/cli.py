@@ -64,7 +64,8 @@ def video_command(args: argparse.Namespace) -> int:
     from monorarp.config_options import pipeline_config
     from monorarp.video.run import VideoRunOptions, run_video
 
-    options = VideoRunOptions(pipeline=pipeline_config(args), speed_mps=args.speed, threaded=args.threaded,
+    # names are checked by run_video, after the camera and the input (one error at a time, in that order)
+    options = VideoRunOptions(pipeline=pipeline_config(args, check=False), speed_mps=args.speed, threaded=args.threaded,
                               max_frames=args.max_frames, write_video=not args.no_video, display=args.display)
     out = args.out if args.out is not None else _default_out(args.input)
     summary = run_video(args.input, args.camera, out, options)
