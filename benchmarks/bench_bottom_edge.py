@@ -24,11 +24,11 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 import numpy as np  # noqa: E402
 
 from harness.render.renderer import Renderer  # noqa: E402
-from harness.run import build_pipeline, with_scenario_markings  # noqa: E402
+from harness.run import with_scenario_markings  # noqa: E402
 from harness.scenario import load_scenario  # noqa: E402
 from harness.simulation.simulator import simulate  # noqa: E402
 from monorarp.detection.bottom_edge import refine_bottom  # noqa: E402
-from monorarp.pipeline import ComponentConfig, PipelineConfig  # noqa: E402
+from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig  # noqa: E402
 from monorarp.types import Frame  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -47,7 +47,7 @@ def main() -> None:
     for on in (False, True):
         cfg = PipelineConfig(detector=ComponentConfig(name="centernet", kwargs={"refine_bottom": on}),
                              ego_speed=ComponentConfig(name="ground_track"))
-        pipes[on] = build_pipeline(with_scenario_markings(cfg, scen), cam)
+        pipes[on] = Pipeline.from_config(with_scenario_markings(cfg, scen), cam)
     det_ms = {False: [], True: []}
     tot_ms = {False: [], True: []}
     cpu_ms = {False: [], True: []}

@@ -24,11 +24,12 @@ import numpy as np
 
 from harness.ground_truth import frame_truth
 from harness.render.renderer import Renderer
-from harness.run import build_pipeline
 from harness.scenario import load_scenario_dict, parse_scenario
 from harness.scoring.evaluate import out_of_range
 from harness.scoring.match import MIN_IOU, as_boxes, split_ignored
 from harness.simulation.simulator import simulate
+from monorarp.detection import build_detector
+from monorarp.pipeline import ComponentConfig
 
 CONDITIONS = {
     "day": None,
@@ -59,8 +60,8 @@ def scenario(cond: dict | None, width: int = 640, height: int = 360, seed: int |
 def recall(cond: dict | None, n_frames: int, dehaze: bool = False, seed: int | None = None
            ) -> tuple[float, int, int, float]:
     sc = scenario(cond, seed=seed)
-    det = {"name": "centernet", "kwargs": {"dehaze": True} if dehaze else {}}
-    detector = build_pipeline({"detector": det}, sc.camera.model()).detector
+    det = ComponentConfig(name="centernet", kwargs={"dehaze": True} if dehaze else {})
+    detector = build_detector(det, sc.camera.model())
     tp = n = n_pred = 0
     with Renderer(sc) as r:
         for world in simulate(sc, n_frames):

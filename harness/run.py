@@ -24,10 +24,9 @@ from harness.run_outputs import RunOutputs
 from harness.run_scoring import score_run
 from harness.scenario import Scenario
 from harness.scoring.evaluate import EvalConfig
-from monorarp.camera import CameraModel
 from monorarp.io import to_jsonable
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
-from monorarp.registry import get_factory, instantiate, uses
+from monorarp.registry import uses
 from monorarp.types import FrameResult
 
 if TYPE_CHECKING:
@@ -35,29 +34,6 @@ if TYPE_CHECKING:
 
 
 # ---------------------------------------------------------------------------- pipeline
-def build_pipeline(config: PipelineConfig | Mapping, camera: CameraModel) -> Pipeline:
-    """A :class:`Pipeline` from ``config``; the detector may also be an ``.onnx`` path or ``"oracle"``.
-
-    Every component name is resolved before anything is built, so an unknown
-    name is reported before a model is loaded. ``camera`` is passed to every
-    factory that declares ``uses_camera``. Raises
-    :class:`~monorarp.errors.UserError` for unknown names or unusable model files.
-    """
-    from monorarp.detection import load_detector
-
-    cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
-    onnx = cfg.detector.name.lower().endswith(".onnx")
-    stages = {"detector": None if onnx else cfg.detector, "tracker": cfg.tracker, "state": cfg.state,
-              "risk": cfg.risk, "ego_speed": cfg.ego_speed, "warning": cfg.warning, "horizon": cfg.horizon}
-    factories = {k: get_factory(k, c.name) for k, c in stages.items() if c is not None}
-    built = {k: instantiate(f, stages[k].kwargs, camera) for k, f in factories.items()}
-    if onnx:
-        built["detector"] = load_detector(cfg.detector.name, camera=camera, **cfg.detector.kwargs)
-    return Pipeline(detector=built["detector"], tracker=built["tracker"], state=built["state"],
-                    risk=built["risk"], ego_speed=built.get("ego_speed"), warning=built.get("warning"),
-                    horizon=built.get("horizon"))
-
-
 def describe(cfg: PipelineConfig) -> dict:
     """Component names and kwargs for ``metrics["config"]``."""
     comps = {k: getattr(cfg, k) for k in ("detector", "tracker", "state", "risk", "ego_speed", "warning", "horizon")}
@@ -93,7 +69,8 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
         PipelineConfig.model_validate(pipeline_config)
     cfg = with_scenario_markings(cfg, scenario)
     camera = scenario.camera.model()
-    pipeline = build_pipeline(cfg, camera)     # bad component names / model files fail before any output
+
+    pipeline = Pipeline.from_config(cfg, camera)     # bad component names / model files fail before any output
     true_speeds: dict[float, float] = {}
     if gps_speed and uses(pipeline.risk, "ego_speed"):
         pipeline.risk = GpsFallbackRisk(pipeline.risk, true_speeds)

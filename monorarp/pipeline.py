@@ -44,17 +44,32 @@ class ComponentConfig(BaseModel):
 
 
 class PipelineConfig(BaseModel):
-    """Which component fills each stage. ``ego_speed``, ``warning`` and ``horizon`` are optional (None = no
-    such stage; no horizon stage = the calibrated horizon)."""
+    """Which component fills each stage: the one place of every stage's default. ``ego_speed``, ``warning``
+    and ``horizon`` are optional (None = no such stage; no horizon stage = the calibrated horizon). The
+    detector is a registered name or an ``.onnx`` path (:func:`monorarp.detection.build_detector`)."""
 
     model_config = ConfigDict(extra="forbid")
-    detector: ComponentConfig
+    detector: ComponentConfig = ComponentConfig(name="centernet")
     tracker: ComponentConfig = ComponentConfig(name="particle")
     state: ComponentConfig = ComponentConfig(name="geometric")
     risk: ComponentConfig = ComponentConfig(name="ttc")
     ego_speed: ComponentConfig | None = None
     warning: ComponentConfig | None = ComponentConfig(name="fcw")
     horizon: ComponentConfig | None = None
+
+    def stages(self) -> dict[str, ComponentConfig]:
+        """The configured stages by kind (absent optional stages left out), in pipeline order."""
+        return {k: c for k in type(self).model_fields if (c := getattr(self, k)) is not None}
+
+    def validate_names(self) -> "PipelineConfig":
+        """Raise :class:`~monorarp.registry.UnknownComponentError` (one line, naming the kind and the
+        available names) for any unknown component name, before anything is built; returns ``self``."""
+        from monorarp.detection import is_model_path
+
+        for kind, comp in self.stages().items():
+            if not (kind == "detector" and is_model_path(comp.name)):
+                registry.get_factory(kind, comp.name)
+        return self
 
 
 @dataclass
@@ -103,11 +118,13 @@ class Pipeline:
         kwargs already set one.
         """
         cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
+        cfg.validate_names()   # unknown names fail before any model is loaded
+        from monorarp.detection import build_detector
 
         def build(kind: str, comp: ComponentConfig | None) -> Any:
             return None if comp is None else registry.build(kind, comp.name, comp.kwargs, camera)
 
-        return cls(detector=build("detector", cfg.detector), tracker=build("tracker", cfg.tracker),
+        return cls(detector=build_detector(cfg.detector, camera), tracker=build("tracker", cfg.tracker),
                    state=build("state", cfg.state), risk=build("risk", cfg.risk),
                    ego_speed=build("ego_speed", cfg.ego_speed), warning=build("warning", cfg.warning),
                    horizon=build("horizon", cfg.horizon))

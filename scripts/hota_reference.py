@@ -137,7 +137,7 @@ def make_inputs(work: Path) -> None:
     import os
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from harness.bench.trackers import build_detector
+    from monorarp.detection import build_detector
     from harness.export.exporter import export
     from harness.export.source import open_source
     from monorarp.pipeline import ComponentConfig

@@ -44,7 +44,6 @@ if TYPE_CHECKING:
 DEFAULT_TRACKERS = ("particle", "kcf", "csrt", "mosse", "medianflow", "sort", "bytetrack")
 DEFAULT_SCENARIOS = ("scenarios/highway_cruise.yaml", "scenarios/cut_in.yaml")
 DEFAULT_FRAMES = 90
-DEFAULT_DETECTOR = "centernet"
 JSON_NAME, MD_NAME = "trackers.json", "trackers.md"
 OUTPUT_NAMES = (JSON_NAME, MD_NAME)
 #: The paper's Table III (s per frame): KCF alone; FasterRCNN detector + particle tracker.
@@ -79,13 +78,6 @@ def check_trackers(names: Sequence[str]) -> list[str]:
     for n in names:
         get_factory("tracker", n)
     return names
-
-
-def build_detector(detector: ComponentConfig, camera: CameraModel) -> Any:
-    """A detector by registry name, ``.onnx`` path or ``"oracle"`` (as ``monorarp run`` builds it)."""
-    from harness.run import build_pipeline
-
-    return build_pipeline(PipelineConfig(detector=detector), camera).detector
 
 
 def cache_sequence(scenario: Scenario, detector: Any, n_frames: int, name: str | None = None,
@@ -203,10 +195,9 @@ def _summary(runs: Sequence[TrackerRun], detector_ms: np.ndarray, cfg: EvalConfi
 class BenchConfig:
     scenarios: Sequence[str | Path] = DEFAULT_SCENARIOS
     trackers: Sequence[str] = DEFAULT_TRACKERS
-    detector: ComponentConfig = field(default_factory=lambda: ComponentConfig(name=DEFAULT_DETECTOR))
     frames: int | None = DEFAULT_FRAMES    # per scenario, capped at its duration x fps; None: the whole scenario
-    state: ComponentConfig = field(default_factory=lambda: PipelineConfig.model_fields["state"].default)
-    risk: ComponentConfig = field(default_factory=lambda: PipelineConfig.model_fields["risk"].default)
+    #: the detector, state and risk stages every tracker shares (its tracker stage is replaced by each of ``trackers``)
+    pipeline: PipelineConfig = field(default_factory=PipelineConfig)
     eval: EvalConfig = EvalConfig()
     #: frame cache (harness.frame_cache), or a callable giving it once the inputs are checked; None: render
     cache: FrameCache | Callable[[], FrameCache | None] | None = None
@@ -234,9 +225,10 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
     if config.frames is not None and config.frames <= 0:
         raise BenchError(f"frames must be a positive integer, got {config.frames}")
     scenarios = _load_scenarios(config.scenarios)
-    for kind, comp in (("state", config.state), ("risk", config.risk)):
-        get_factory(kind, comp.name)
-    detectors = [build_detector(config.detector, sc.camera.model()) for _, sc in scenarios]
+    from monorarp.detection import build_detector
+
+    cfg = config.pipeline.validate_names()
+    detectors = [build_detector(cfg.detector, sc.camera.model()) for _, sc in scenarios]
     cache = config.cache() if callable(config.cache) else config.cache
 
     per_tracker: dict[str, list[TrackerRun]] = {t: [] for t in trackers}
@@ -249,7 +241,7 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
         per_scenario[name] = {"frames": len(seq.frames), "detector_ms": _ms_stats(seq.detector_ms),
                               "detections": int(sum(len(d) for d in seq.detections)), "trackers": {}}
         for t in trackers:
-            run = run_tracker(seq, ComponentConfig(name=t), config.state, config.risk, config.eval)
+            run = run_tracker(seq, ComponentConfig(name=t), cfg.state, cfg.risk, config.eval)
             per_tracker[t].append(run)
             per_scenario[name]["trackers"][t] = _summary([run], seq.detector_ms, config.eval)
             if log:
@@ -260,8 +252,8 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
     return {
         "config": {"scenarios": [str(p) for p in config.scenarios], "scenario_names": [n for n, _ in scenarios],
                    "frames_per_scenario": {n: v["frames"] for n, v in per_scenario.items()},
-                   "detector": config.detector.model_dump(), "trackers": trackers,
-                   "state": config.state.model_dump(), "risk": config.risk.model_dump(), "scoring": asdict(config.eval)},
+                   "detector": cfg.detector.model_dump(), "trackers": trackers,
+                   "state": cfg.state.model_dump(), "risk": cfg.risk.model_dump(), "scoring": asdict(config.eval)},
         "detector_ms": _ms_stats(all_det_ms),
         "trackers": {t: _summary(per_tracker[t], all_det_ms, config.eval) for t in trackers},
         "per_scenario": per_scenario,

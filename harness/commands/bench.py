@@ -9,7 +9,8 @@ import argparse
 from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
-from harness.commands.detector_args import add_detector_arguments, detector_config
+from harness.commands.detector_args import add_oracle_arguments, pipeline_config
+from monorarp.config_options import add_pipeline_options
 from monorarp.errors import UserError
 
 
@@ -33,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"scenario files, space- or comma-separated (default: {','.join(DEFAULT_SCENARIOS)})")
     t.add_argument("--trackers", nargs="+", default=None, metavar="NAME",
                    help=f"registered trackers, space- or comma-separated (default: {','.join(DEFAULT_TRACKERS)})")
-    add_detector_arguments(t)
+    add_pipeline_options(t, stages=("detector",))
+    add_oracle_arguments(t)
     t.add_argument("--frames", type=int, default=DEFAULT_FRAMES, metavar="N",
                    help=f"frames per scenario, at most its duration x fps (default {DEFAULT_FRAMES})")
     add_cache_arguments(t)
@@ -51,8 +53,7 @@ def run_trackers(args: argparse.Namespace) -> int:
     scenarios = _split(args.scenarios) if args.scenarios is not None else list(DEFAULT_SCENARIOS)
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
-    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, detector=detector_config(args),
-                      frames=args.frames)
+    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, pipeline=pipeline_config(args), frames=args.frames)
     cfg.cache = lambda: cache_from_args(args)
     result = run_bench(cfg, out_dir=args.out, log=stderr_log)
     print(table_iii(result))

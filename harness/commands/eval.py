@@ -12,7 +12,9 @@ import argparse
 import math
 from pathlib import Path
 
+from monorarp.config_options import add_pipeline_options, pipeline_config
 from monorarp.errors import UserError
+from monorarp.pipeline import PipelineConfig
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,11 +31,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "rig's calibration needs --camera-height (KITTI: 1.65) and is taken as level unless "
                     "--horizon-row is given.")
     k.add_argument("root", type=Path, metavar="DIR", help="dataset directory (or its parent holding training/)")
-    k.add_argument("--detector", default="centernet", metavar="NAME|PATH.onnx|labels",
+    k.add_argument("--detector", default=PipelineConfig().detector.name, metavar="NAME|PATH.onnx|labels",
                    help="registered detector, an ONNX model, or 'labels' (the label boxes of Car/Van/Truck as "
-                        "detections: an oracle); default centernet")
-    k.add_argument("--tracker", default="particle", metavar="NAME",
-                   help="tracker for tracking sequences (default particle); object datasets use none")
+                        f"detections: an oracle); default {PipelineConfig().detector.name}")
+    add_pipeline_options(k, stages=("tracker",))   # tracking sequences only; object datasets use none
     k.add_argument("--camera-height", type=float, default=None, metavar="M",
                    help="camera height above the road (m); overrides the calibration's")
     k.add_argument("--horizon-row", type=float, default=None, metavar="PX",
@@ -59,6 +60,7 @@ def _positive(name: str, v: float | None) -> None:
 def run_kitti(args: argparse.Namespace) -> int:
     from harness.kitti_eval.evaluate import LABELS_DETECTOR, KittiEvalOptions, dataset_summary, evaluate_kitti
     from harness.kitti_eval.reader import open_dataset
+    from monorarp.detection import is_model_path
     from monorarp.registry import get_factory
 
     _positive("--camera-height", args.camera_height)
@@ -68,7 +70,7 @@ def run_kitti(args: argparse.Namespace) -> int:
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     detector = args.detector
-    if detector.lower().endswith(".onnx"):
+    if is_model_path(detector):
         detector = str(Path(detector).expanduser())
         if not Path(detector).is_file():
             raise UserError(f"--detector: {detector}: no such ONNX model file")
@@ -76,9 +78,9 @@ def run_kitti(args: argparse.Namespace) -> int:
         if detector == "oracle":
             raise UserError("--detector: the run oracle needs simulation truth; on KITTI use --detector labels")
         get_factory("detector", detector)            # unknown names fail before anything is read
-    get_factory("tracker", args.tracker)
+    tracker = pipeline_config(args).tracker.name
     ds = open_dataset(args.root)
-    opts = KittiEvalOptions(detector=detector, tracker=args.tracker, camera_height_m=args.camera_height,
+    opts = KittiEvalOptions(detector=detector, tracker=tracker, camera_height_m=args.camera_height,
                             horizon_row=args.horizon_row, fps=args.fps, frames=args.frames)
     metrics = evaluate_kitti(ds, opts, args.out)
     print(dataset_summary(metrics))

@@ -11,8 +11,9 @@ import argparse
 from pathlib import Path
 
 from monorarp.errors import UserError
+from monorarp.pipeline import PipelineConfig
 
-DEFAULT_MOT_DETECTOR = "centernet"
+DEFAULT_MOT_DETECTOR = PipelineConfig().detector.name
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -53,11 +54,10 @@ def run(args: argparse.Namespace) -> int:
     source = open_source(args.source, args.frames)
     detector = None
     if det_name is not None and det_name.lower() != "none":
-        from harness.bench.trackers import build_detector
+        from monorarp.detection import build_detector
         from monorarp.pipeline import ComponentConfig
 
-        name = str(Path(det_name).expanduser()) if det_name.lower().endswith(".onnx") else det_name
-        detector = build_detector(ComponentConfig(name=name), source.camera)
+        detector = build_detector(ComponentConfig(name=det_name), source.camera)
     stats = export(source, args.format, args.out, detector=detector,
                    detector_name=det_name if detector is not None else None)
     extra = f", {stats['detections']} detections ({det_name})" if detector is not None else ""

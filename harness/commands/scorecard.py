@@ -17,6 +17,7 @@ SUITE_CHOICES = ("nhtsa", "ncap", "cut_in", "nominal", "risk", "all")
 
 def register(sub: argparse._SubParsersAction) -> None:
     from harness.commands.timeout_args import add_run_timeout_argument
+    from monorarp.config_options import add_pipeline_options
 
     p = sub.add_parser(
         "scorecard", help="run the FCW test protocols (NHTSA, Euro NCAP, cut-ins), false alarms, risk family",
@@ -28,9 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="suite(s) to run (repeatable; default all)")
     p.add_argument("--protocol", action="append", type=Path, default=None, metavar="FILE.yaml",
                    help="protocol file(s) to run instead of the shipped suites")
-    p.add_argument("--detector", default="centernet", metavar="NAME|PATH.onnx|oracle",
-                   help="detector (default centernet, the shipped model; oracle = ground-truth boxes)")
-    p.add_argument("--tracker", default="particle", metavar="NAME", help="tracker (default particle)")
+    add_pipeline_options(p, stages=("detector", "tracker"))
     p.add_argument("--warning-threshold", type=float, default=None, metavar="S",
                    help="TTC threshold of the warning stage, s (default: the stage's own, 3.0)")
     p.add_argument("--trials", type=int, default=None, metavar="N", help="trials per test (default: the protocol's)")
@@ -49,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from harness.scorecard.report import console_table
     from harness.scorecard.run import SUITES, ScorecardOptions, run_scorecard
 
+    from harness.commands.detector_args import pipeline_config
     from harness.commands.timeout_args import check_run_timeout
 
     if args.workers < 1:
@@ -59,9 +59,10 @@ def run(args: argparse.Namespace) -> int:
     if args.protocol and args.suite:
         raise UserError("--protocol and --suite: give one or the other")
     suites = SUITES if not args.suite or "all" in args.suite else tuple(dict.fromkeys(args.suite))
-    detector = str(Path(args.detector).expanduser()) if args.detector.lower().endswith(".onnx") else args.detector
-    opts = ScorecardOptions(suites=suites, protocol_files=tuple(args.protocol or ()), detector=detector,
-                            tracker=args.tracker, trials=args.trials, frames=args.frames,
+    cfg = pipeline_config(args)
+    opts = ScorecardOptions(suites=suites, protocol_files=tuple(args.protocol or ()), detector=cfg.detector.name,
+                            detector_kwargs=cfg.detector.kwargs, tracker=cfg.tracker.name, trials=args.trials,
+                            frames=args.frames,
                             warning_kwargs={} if args.warning_threshold is None else
                             {"ttc_threshold_s": args.warning_threshold},
                             executor=args.executor, workers=args.workers, address=args.address,

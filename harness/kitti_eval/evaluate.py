@@ -63,8 +63,8 @@ PREFETCH = 4
 
 @dataclass(frozen=True)
 class KittiEvalOptions:
-    detector: str = "centernet"       # registry name, .onnx path, or "labels"
-    tracker: str = "particle"         # tracking sequences only
+    detector: str = PipelineConfig().detector.name    # registry name, .onnx path, or "labels"
+    tracker: str = PipelineConfig().tracker.name      # tracking sequences only
     camera_height_m: float | None = None
     horizon_row: float | None = None
     fps: float | None = None          # tracking sequences; default: export.json's, else 10 Hz
@@ -265,9 +265,7 @@ class _Pipelines:
     def get(self, camera: CameraModel) -> Pipeline:
         with self.lock:
             if camera not in self.cache:
-                from harness.run import build_pipeline
-
-                p = build_pipeline(self.config(), camera)
+                p = Pipeline.from_config(self.config(), camera)
                 self.detectors[camera] = None if self.labels else p.detector
                 p.detector = self.queue
                 if self.kind == "object":

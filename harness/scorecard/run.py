@@ -28,9 +28,11 @@ from harness.scorecard.protocols import ProtocolError, Trial, expand_protocol, l
 from harness.sweep.executors import Executor, make_executor
 from harness.sweep.expand import RunTask, _inject_seeds, sanitize
 from harness.sweep.orchestrate import clean_leftovers, finished, prepare_out_dir
-from harness.sweep.spec import Variant
+from harness.sweep.spec import Variant, run_mapping
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
 from monorarp.readers import read_json_or_none
+from monorarp.config_options import WARNING_THRESHOLD_S
+from monorarp.pipeline import PipelineConfig
 
 PROTOCOL_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "fcw"
 SUITES = ("nhtsa", "ncap", "cut_in", "nominal", "risk")
@@ -43,8 +45,9 @@ class ScorecardOptions:
     suites: Sequence[str] = SUITES
     protocol_dir: Path = PROTOCOL_DIR
     protocol_files: Sequence[Path] = ()          # explicit files instead of <protocol_dir>/<suite>.yaml
-    detector: str = "centernet"
-    tracker: str = "particle"
+    detector: str = PipelineConfig().detector.name   # registered name, "oracle" or .onnx path (relative: to the cwd)
+    detector_kwargs: dict = field(default_factory=dict)
+    tracker: str = PipelineConfig().tracker.name
     warning_kwargs: dict = field(default_factory=dict)
     trials: int | None = None
     frames: int | None = None
@@ -66,7 +69,8 @@ def variant_for(trial: Trial, opts: ScorecardOptions) -> Variant:
     """The pipeline of a trial: the chosen detector and tracker, the warning stage; in the risk suite the
     Monte Carlo risk (its ego model = constant speed when the scenario's ego is known to hold its speed,
     the ego speed from the lane-marking estimator) with the 1/TTC risk scored on the same states."""
-    kw = dict(detector=opts.detector, tracker=opts.tracker, warning_kwargs=dict(opts.warning_kwargs))
+    kw = dict(detector=opts.detector, detector_kwargs=dict(opts.detector_kwargs), tracker=opts.tracker,
+              warning_kwargs=dict(opts.warning_kwargs))
     if trial.suite == "risk":
         ego = trial.scenario.get("ego", {})
         constant = ego.get("behaviour") == "constant_speed" and not any(
@@ -78,8 +82,8 @@ def variant_for(trial: Trial, opts: ScorecardOptions) -> Variant:
 
 def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
     """Every trial of the chosen suites and its run task; raises UserError for any bad input."""
-    from harness.run import build_pipeline
     from monorarp.errors import UserError
+    from monorarp.pipeline import Pipeline
 
     if opts.trials is not None and opts.trials < 1:
         raise ProtocolError(f"--trials: must be >= 1, got {opts.trials}")
@@ -101,11 +105,12 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
         except ScenarioError as e:
             raise ProtocolError(f"{trial.scenario_file}: test {trial.test}: {e}") from None
         variant = variant_for(trial, opts)
-        pipe = variant.pipeline_config(Path.cwd())
+        config = variant.pipeline_config(Path.cwd())
+        pipe = run_mapping(config)
         key = json.dumps(pipe, sort_keys=True)
         if key not in built:      # each distinct pipeline is built once before anything runs
             try:
-                build_pipeline(pipe, parse_scenario(scenario).camera.model())
+                Pipeline.from_config(config, parse_scenario(scenario).camera.model())
             except UserError as e:
                 raise ProtocolError(f"scorecard pipeline: {e}") from None
             except (TypeError, ValueError) as e:
@@ -116,7 +121,7 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
                              scenario_key=trial.suite, seed=int(scenario["seed"]), grid=dict(trial.params),
                              variant=variant.name, scenario=scenario,
                              pipeline=_inject_seeds(built[key], int(scenario["seed"])), frames=opts.frames,
-                             warning_threshold_s=2.0))
+                             warning_threshold_s=WARNING_THRESHOLD_S))
     ids = [t.id for t in tasks]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})[0]

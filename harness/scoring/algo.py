@@ -10,6 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from monorarp.config_options import WARNING_THRESHOLD_S
+
 #: Longitudinal range bins of the ground-truth distance ``d_long`` (m), [lo, hi).
 RANGE_BINS: dict[str, tuple[float, float]] = {
     "0-10": (0.0, 10.0),
@@ -20,7 +22,6 @@ RANGE_BINS: dict[str, tuple[float, float]] = {
 #: Wider spans the issue's accuracy targets are stated over (m), [lo, hi).
 TARGET_SPANS: dict[str, tuple[float, float]] = {"5-40": (5.0, 40.0), "40-80": (40.0, 80.0)}
 
-DEFAULT_WARNING_S = 2.0
 #: Two-sided 90 % normal quantile: the stated distance interval is est +- Z90 * std.
 Z90 = 1.6448536269514722
 
@@ -107,14 +108,14 @@ def precision_recall(tp: int, n_pred: int, n_true: int) -> dict[str, float | int
     return {"precision": p, "recall": r, "f1": f1, "tp": tp, "fp": n_pred - tp, "fn": n_true - tp}
 
 
-def warnings_from_ttc(ttc: Sequence[float | None] | np.ndarray, threshold_s: float = DEFAULT_WARNING_S) -> np.ndarray:
+def warnings_from_ttc(ttc: Sequence[float | None] | np.ndarray, threshold_s: float = WARNING_THRESHOLD_S) -> np.ndarray:
     """Warning flags: TTC known (not None/NaN) and strictly below ``threshold_s``."""
     t = np.array([np.nan if v is None else v for v in ttc], dtype=float)
     with np.errstate(invalid="ignore"):
         return np.isfinite(t) & (t < threshold_s)
 
 
-def warning_classification(ttc_est, ttc_gt, threshold_s: float = DEFAULT_WARNING_S) -> dict[str, float | int]:
+def warning_classification(ttc_est, ttc_gt, threshold_s: float = WARNING_THRESHOLD_S) -> dict[str, float | int]:
     """Precision/recall of estimated TTC warnings against ground-truth ones, pair by pair.
 
     ``ttc_est``/``ttc_gt``: the TTC (s, None/NaN = no collision within the horizon)

@@ -23,6 +23,7 @@ from harness.scoring.warnings import warning_metrics
 from harness.truth import FrameTruth, ObjectTruth
 from monorarp.camera import CameraModel
 from monorarp.io import write_json_atomic
+from monorarp.config_options import WARNING_THRESHOLD_S
 from monorarp.types import FrameResult, RiskEstimate
 
 NAN = float("nan")
@@ -35,7 +36,7 @@ STAGES = ("detector", "ego_speed", "tracker", "state", "risk", "warning", "total
 
 @dataclass(frozen=True)
 class EvalConfig:
-    warning_threshold_s: float = algo.DEFAULT_WARNING_S
+    warning_threshold_s: float = WARNING_THRESHOLD_S
     min_iou: float = MIN_IOU
     min_visibility: float = 0.3
     max_range_m: float = 80.0

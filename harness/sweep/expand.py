@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.scenario import ScenarioError, load_scenario_dict, parse_scenario
-from harness.sweep.spec import SweepSpec, SweepSpecError, apply_override, load_sweep_spec
+from harness.sweep.spec import SweepSpec, SweepSpecError, apply_override, load_sweep_spec, run_mapping
 from monorarp.errors import UserError
 
 MAX_ID_LENGTH = 180
@@ -119,11 +119,12 @@ def _camera_for_preflight(scenarios: list[dict]):
 
 def _inject_seeds(pipeline: dict, seed: int) -> dict:
     """Give every component whose factory declares ``uses_seed`` the run's seed, unless the spec set one."""
+    from monorarp.detection import is_model_path
     from monorarp.registry import get_factory, uses
 
     out = copy.deepcopy(pipeline)
     for kind, comp in out.items():
-        if comp is None or comp["name"].lower().endswith(".onnx") or "seed" in comp["kwargs"]:
+        if comp is None or is_model_path(comp["name"]) or "seed" in comp["kwargs"]:
             continue
         if uses(get_factory(kind, comp["name"]), "seed"):
             comp["kwargs"]["seed"] = int(seed)
@@ -132,23 +133,24 @@ def _inject_seeds(pipeline: dict, seed: int) -> dict:
 
 def check_components(spec: SweepSpec, spec_path: Path, scenarios: list[dict]) -> dict[str, dict]:
     """Each variant's pipeline mapping, after building it once (raises :class:`SweepSpecError`)."""
-    from harness.run import build_pipeline
+    from monorarp.detection import is_model_path
+    from monorarp.pipeline import Pipeline
 
     camera = _camera_for_preflight(scenarios)
     configs = {}
     for i, variant in enumerate(spec.variants):
         cfg = variant.pipeline_config(spec_path.parent)
         where = f"{spec_path}: variants.{i} ({variant.name})"
-        det = cfg["detector"]["name"]
-        if det.lower().endswith(".onnx") and not Path(det).is_file():
+        det = cfg.detector.name
+        if is_model_path(det) and not Path(det).is_file():
             raise SweepSpecError(f"{where}: detector: no such ONNX file {det}")
         try:
-            build_pipeline(cfg, camera)
+            Pipeline.from_config(cfg, camera)
         except UserError as e:
             raise SweepSpecError(f"{where}: {e}") from None
         except Exception as e:  # noqa: BLE001 - bad kwargs etc. from a component constructor
             raise SweepSpecError(f"{where}: cannot build the pipeline: {type(e).__name__}: {e}") from None
-        configs[variant.name] = cfg
+        configs[variant.name] = run_mapping(cfg)
     return configs
 
 

@@ -32,10 +32,12 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from harness.config_io import validate_config
 from harness.scenario import Scenario
+from monorarp.config_options import WARNING_THRESHOLD_S
 from monorarp.errors import UserError
 from monorarp.readers import read_yaml
+from monorarp.pipeline import ComponentConfig, PipelineConfig
 
-DEFAULT_DETECTOR = "centernet"
+_DEFAULT = PipelineConfig()
 _NAME = r"^[A-Za-z0-9][A-Za-z0-9_.+\-]*$"
 
 
@@ -165,7 +167,9 @@ class ScenarioRef(_Model):
 
 
 class Variant(_Model):
-    """One pipeline configuration. Component names resolve through :mod:`monorarp.registry`.
+    """One pipeline configuration in the spec file's flat form (``<stage>`` and ``<stage>_kwargs``);
+    :meth:`pipeline_config` is the one place it becomes a :class:`PipelineConfig`, whose defaults it
+    takes (no ego-speed stage unless one is named). Component names resolve through :mod:`monorarp.registry`.
 
     ``detector`` is a registered name, ``oracle`` (ground-truth boxes) or an
     ``.onnx`` path (relative to the spec file). ``velocity`` is shorthand for
@@ -173,18 +177,18 @@ class Variant(_Model):
     """
 
     name: str = Field(pattern=_NAME, max_length=60)
-    detector: str = DEFAULT_DETECTOR
+    detector: str = _DEFAULT.detector.name
     detector_kwargs: dict[str, Any] = {}
-    tracker: str = "particle"
+    tracker: str = _DEFAULT.tracker.name
     tracker_kwargs: dict[str, Any] = {}
-    state: str = "geometric"
+    state: str = _DEFAULT.state.name
     state_kwargs: dict[str, Any] = {}
     velocity: Literal["kalman", "difference"] | None = None
-    risk: str = "ttc"
+    risk: str = _DEFAULT.risk.name
     risk_kwargs: dict[str, Any] = {}
     ego_speed: str | None = None
     ego_speed_kwargs: dict[str, Any] = {}
-    warning: str | None = "fcw"
+    warning: str | None = _DEFAULT.warning.name
     warning_kwargs: dict[str, Any] = {}
     horizon: str | None = Field(None, description="horizon stage (monorarp.horizon: calibrated, online); "
                                                   "null: the calibrated horizon, no stage")
@@ -196,26 +200,37 @@ class Variant(_Model):
             raise ValueError("give velocity either as 'velocity' or in 'state_kwargs', not both")
         return self
 
-    def pipeline_config(self, spec_dir: Path) -> dict:
-        """The :class:`monorarp.pipeline.PipelineConfig` mapping of this variant."""
+    def pipeline_config(self, spec_dir: Path) -> PipelineConfig:
+        """This variant's :class:`PipelineConfig`; a relative ``.onnx`` detector path is made absolute
+        against ``spec_dir`` (the spec file's folder)."""
+        from monorarp.detection import is_model_path
+
         detector = self.detector
-        if detector.lower().endswith(".onnx"):
+        if is_model_path(detector):
             p = Path(detector).expanduser()
             detector = str(p if p.is_absolute() else (spec_dir / p).resolve())
         state_kwargs = dict(self.state_kwargs)
         if self.velocity is not None:
             state_kwargs["velocity"] = self.velocity
-        cfg = {"detector": {"name": detector, "kwargs": dict(self.detector_kwargs)},
-               "tracker": {"name": self.tracker, "kwargs": dict(self.tracker_kwargs)},
-               "state": {"name": self.state, "kwargs": state_kwargs},
-               "risk": {"name": self.risk, "kwargs": dict(self.risk_kwargs)},
-               "ego_speed": None}
-        if self.ego_speed is not None:
-            cfg["ego_speed"] = {"name": self.ego_speed, "kwargs": dict(self.ego_speed_kwargs)}
-        cfg["warning"] = None if self.warning is None else {"name": self.warning, "kwargs": dict(self.warning_kwargs)}
-        if self.horizon is not None:      # absent, not null: configs without a horizon stage stay as they were
-            cfg["horizon"] = {"name": self.horizon, "kwargs": dict(self.horizon_kwargs)}
-        return cfg
+
+        def comp(name: str | None, kwargs: dict[str, Any]) -> ComponentConfig | None:
+            return None if name is None else ComponentConfig(name=name, kwargs=dict(kwargs))
+
+        return PipelineConfig(detector=comp(detector, self.detector_kwargs),
+                              tracker=comp(self.tracker, self.tracker_kwargs),
+                              state=comp(self.state, state_kwargs), risk=comp(self.risk, self.risk_kwargs),
+                              ego_speed=comp(self.ego_speed, self.ego_speed_kwargs),
+                              warning=comp(self.warning, self.warning_kwargs),
+                              horizon=comp(self.horizon, self.horizon_kwargs))
+
+
+def run_mapping(config: PipelineConfig) -> dict:
+    """``config`` as a run stores it (``RunTask.pipeline``, ``run.json``, compared on ``--resume``): a
+    mapping without a ``horizon`` key when there is no horizon stage, as runs before that stage have it."""
+    data = config.model_dump()
+    if data["horizon"] is None:
+        del data["horizon"]
+    return data
 
 
 GridValue = bool | int | float | str | list[bool | int | float | str] | None
@@ -228,7 +243,7 @@ class SweepSpec(_Model):
     grid: dict[str, list[GridValue]] = {}
     overrides: dict[str, Any] = {}
     frames: int | None = Field(None, gt=0)
-    warning_threshold_s: float = Field(2.0, gt=0, le=30)
+    warning_threshold_s: float = Field(WARNING_THRESHOLD_S, gt=0, le=30)
     metrics: list[str] = []
     variants: list[Variant] = Field(default_factory=lambda: [Variant(name="default")], min_length=1)
 

@@ -3,22 +3,34 @@
 Every detector has ``detect(image) -> list[Detection]`` (:class:`monorarp.types.Detector`).
 Built in (:mod:`monorarp.catalogue`): ``centernet`` (the project's own model, the default) and ``yolo``
 (Ultralytics YOLOv8/YOLO11 ONNX exports). :func:`load_detector` takes a
-registered name or a path to an ``.onnx`` file whose layout it recognises.
+registered name or a path to an ``.onnx`` file whose layout it recognises;
+:func:`build_detector` builds a pipeline config's detector stage with it.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from monorarp.detection.centernet import CenterNetDetector, is_centernet_layout
 from monorarp.detection.onnx_runtime import ModelError, open_session, outputs
 from monorarp.detection.yolo import YoloDetector, output_layout
 from monorarp.types import Detector
 
-DEFAULT_DETECTOR = "centernet"
+if TYPE_CHECKING:
+    from monorarp.pipeline import ComponentConfig
 
-__all__ = ["CenterNetDetector", "YoloDetector", "ModelError", "load_detector", "DEFAULT_DETECTOR"]
+__all__ = ["CenterNetDetector", "YoloDetector", "ModelError", "build_detector", "is_model_path", "load_detector"]
+
+
+def is_model_path(name: str | Path) -> bool:
+    """Whether a detector ``name`` is a model file (``.onnx``, any case) rather than a registered name."""
+    return str(name).lower().endswith(".onnx")
+
+
+def build_detector(component: "ComponentConfig", camera: Any = None) -> Detector:
+    """The detector stage of a pipeline config: :func:`load_detector` of its name with its kwargs."""
+    return load_detector(component.name, camera=camera, **component.kwargs)
 
 
 def load_detector(name_or_path: str | Path, camera: Any = None, **kw: Any) -> Detector:
@@ -31,11 +43,11 @@ def load_detector(name_or_path: str | Path, camera: Any = None, **kw: Any) -> De
     invalid file, or an unrecognised layout.
     """
     s = str(name_or_path)
-    if not s.lower().endswith(".onnx"):
+    if not is_model_path(s):
         from monorarp.registry import build
 
         return build("detector", s, kw, camera)
-    path = Path(s)
+    path = Path(s).expanduser()
     session = open_session(path, 1)
     if is_centernet_layout(session):
         return CenterNetDetector(model_path=path, camera=camera, **kw)

@@ -6,8 +6,7 @@ import argparse
 import math
 from pathlib import Path
 
-from monorarp.detection import DEFAULT_DETECTOR
-from monorarp.ego_speed import DEFAULT_EGO_SPEED
+from monorarp.config_options import add_pipeline_options
 
 
 def _positive_int(text: str) -> int:
@@ -46,14 +45,7 @@ def register_video(sub: argparse._SubParsersAction) -> None:
     p.add_argument("input", metavar="INPUT", help="video file, or webcam index (an integer)")
     p.add_argument("--camera", required=True, type=Path, metavar="CAMERA.yaml",
                    help="camera file (YAML or JSON: resolution, intrinsics, mounting height, pitch or horizon_row)")
-    p.add_argument("--detector", default=DEFAULT_DETECTOR, metavar="NAME|PATH.onnx",
-                   help=f"registered detector or an ONNX file (CenterNet or YOLO layout; default: {DEFAULT_DETECTOR})")
-    p.add_argument("--tracker", default="particle", metavar="NAME", help="registered tracker (default: particle)")
-    p.add_argument("--ego-speed", default=DEFAULT_EGO_SPEED, metavar="NAME|none",
-                   help=f"lane-marking ego-speed estimator, or none (default: {DEFAULT_EGO_SPEED}; "
-                        "assumes US markings, 3.05 m stripes every 12.19 m)")
-    p.add_argument("--risk", default="ttc", metavar="ttc|monte_carlo",
-                   help="risk estimator: the paper's 1/TTC or Monte Carlo IDM/MOBIL rollouts (default: ttc)")
+    add_pipeline_options(p)
     p.add_argument("--speed", type=_speed, default=None, metavar="MPS",
                    help="known ego speed (m/s, e.g. GPS): used by the Monte Carlo risk when the ego-speed "
                         "estimator has no value, and reported as ego_speed then")
@@ -62,9 +54,6 @@ def register_video(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--display", action="store_true",
                    help="show annotated frames in a window (needs a screen and OpenCV with GUI support; "
                         "q or Esc stops early)")
-    p.add_argument("--horizon", choices=("calibrated", "online"), default="calibrated",
-                   help="horizon row of equation 3: the calibration's, or each frame's lane-line vanishing point "
-                        "(for a camera that pitches on its mount; default: calibrated)")
     p.add_argument("--max-frames", type=_positive_int, default=None, metavar="N", help="stop after N frames")
     p.add_argument("--no-video", action="store_true", help="do not write annotated.mp4")
     p.add_argument("--threaded", action="store_true", help="one thread per pipeline stage (as in the paper)")
@@ -72,13 +61,12 @@ def register_video(sub: argparse._SubParsersAction) -> None:
 
 
 def video_command(args: argparse.Namespace) -> int:
+    from monorarp.config_options import pipeline_config
     from monorarp.video.run import VideoRunOptions, run_video
 
-    ego = None if str(args.ego_speed).lower() == "none" else args.ego_speed
-    options = VideoRunOptions(detector=str(args.detector), tracker=args.tracker, ego_speed=ego, risk=args.risk,
-                              speed_mps=args.speed, threaded=args.threaded, max_frames=args.max_frames,
-                              write_video=not args.no_video, display=args.display,
-                              horizon=getattr(args, "horizon", "calibrated"))
+    # names are checked by run_video, after the camera and the input (one error at a time, in that order)
+    options = VideoRunOptions(pipeline=pipeline_config(args, check=False), speed_mps=args.speed, threaded=args.threaded,
+                              max_frames=args.max_frames, write_video=not args.no_video, display=args.display)
     out = args.out if args.out is not None else _default_out(args.input)
     summary = run_video(args.input, args.camera, out, options)
     span = "" if summary.t_first is None else f", t {summary.t_first:.3f}..{summary.t_last:.3f} s"

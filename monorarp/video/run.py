@@ -33,18 +33,16 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TextIO
 
 import cv2
 import numpy as np
 
 from monorarp.camera import CameraModel
-from monorarp.detection import DEFAULT_DETECTOR, YoloDetector, load_detector
-from monorarp.ego_speed import DEFAULT_EGO_SPEED
+from monorarp.config_options import WARNING_THRESHOLD_S, default_pipeline_config
 from monorarp.errors import UserError
 from monorarp.io import JsonlWriter, atomic_output_dir, write_json_atomic
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
-from monorarp.registry import get_factory
 from monorarp.types import Frame, FrameResult
 from monorarp.video.source import VideoInfo, VideoSource
 
@@ -59,20 +57,15 @@ class DisplayError(UserError, RuntimeError):
 
 @dataclass(frozen=True)
 class VideoRunOptions:
-    """Components by registry name (detector: name or ``.onnx`` path; ego_speed None = no stage)."""
+    """The pipeline (default: what ``monorarp video`` runs without options) and the run loop's settings."""
 
-    detector: str = DEFAULT_DETECTOR
-    tracker: str = "particle"
-    ego_speed: str | None = DEFAULT_EGO_SPEED
-    risk: str = "ttc"
-    speed_mps: float | None = None      # known ego speed (GPS), m/s
+    pipeline: PipelineConfig = field(default_factory=default_pipeline_config)
+    speed_mps: float | None = None      # known ego speed (GPS), m/s: the Monte Carlo risk's when it sets none
     threaded: bool = False
     max_frames: int | None = None
     write_video: bool = True
     display: bool = False
-    warning_s: float = 2.0
-    extra: dict[str, dict[str, Any]] = field(default_factory=dict)   # stage -> extra constructor kwargs
-    horizon: str | None = None          # horizon stage (monorarp.horizon); None = the calibrated horizon
+    warning_s: float = WARNING_THRESHOLD_S   # display: TTC (s) drawn as a warning
 
 
 @dataclass(frozen=True)
@@ -129,37 +122,12 @@ def camera_for(camera: CameraModel, info: VideoInfo, log: TextIO | None | str = 
 
 
 # ------------------------------------------------------------------------- pipeline
-def pipeline_config(options: VideoRunOptions) -> PipelineConfig:
-    """The :class:`PipelineConfig` for ``options``; an ``.onnx`` detector path becomes the registered
-    detector for its output layout with ``model_path`` set (the file is opened to find the layout)."""
-    extra = options.extra
-    det_name, det_kw = options.detector, dict(extra.get("detector", {}))
-    if det_name.lower().endswith(".onnx"):
-        probe = load_detector(det_name)   # missing/invalid file or unknown layout -> UserError
-        det_kw["model_path"] = det_name
-        det_name = "yolo" if isinstance(probe, YoloDetector) else "centernet"
-    risk_kw = dict(extra.get("risk", {}))
-    if options.risk == "monte_carlo" and options.speed_mps is not None:
-        risk_kw.setdefault("ego_speed_mps", options.speed_mps)
-    return PipelineConfig(
-        detector=ComponentConfig(name=det_name, kwargs=det_kw),
-        tracker=ComponentConfig(name=options.tracker, kwargs=dict(extra.get("tracker", {}))),
-        risk=ComponentConfig(name=options.risk, kwargs=risk_kw),
-        ego_speed=None if options.ego_speed is None else
-        ComponentConfig(name=options.ego_speed, kwargs=dict(extra.get("ego_speed", {}))),
-        horizon=None if options.horizon in (None, "calibrated") else
-        ComponentConfig(name=options.horizon, kwargs=dict(extra.get("horizon", {}))),
-    )
-
-
-def build_pipeline(camera: CameraModel, options: VideoRunOptions) -> Pipeline:
-    """Resolve every name first (unknown ones fail before a model loads), then :meth:`Pipeline.from_config`."""
-    for kind, name in (("tracker", options.tracker), ("risk", options.risk), ("ego_speed", options.ego_speed)):
-        if name is not None:
-            get_factory(kind, name)
-    if not options.detector.lower().endswith(".onnx"):
-        get_factory("detector", options.detector)
-    return Pipeline.from_config(pipeline_config(options), camera)
+def with_given_speed(config: PipelineConfig, speed_mps: float | None) -> PipelineConfig:
+    """``config`` with a known ego speed (m/s) given to the Monte Carlo risk, unless its kwargs set one."""
+    if config.risk.name != "monte_carlo" or speed_mps is None or "ego_speed_mps" in config.risk.kwargs:
+        return config
+    risk = ComponentConfig(name=config.risk.name, kwargs={**config.risk.kwargs, "ego_speed_mps": speed_mps})
+    return config.model_copy(update={"risk": risk})
 
 
 # --------------------------------------------------------------------------- records
@@ -214,7 +182,7 @@ def run_video(input_spec: str | int | Path, camera: CameraModel | str | Path, ou
         raise UserError(f"--speed must be a non-negative speed in m/s, got {options.speed_mps}")
     with VideoSource(input_spec) as source:
         cam, scaled = camera_for(cam, source.info, log)
-        pipeline = build_pipeline(cam, options)
+        pipeline = Pipeline.from_config(with_given_speed(options.pipeline, options.speed_mps), cam)
         if out_dir is None:
             return _loop(source, pipeline, cam, scaled, options, None, on_frame)
         with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES) as tmp:
@@ -292,13 +260,14 @@ def _loop(source: VideoSource, pipeline: Pipeline, cam: CameraModel, scaled: boo
     summary = VideoRunSummary(out_dir=out, frames=n, t_first=t_first, t_last=t_last, wall_s=wall,
                               pipeline_ms_mean=means.get("total"), camera=cam, camera_scaled=scaled)
     if out is not None:
+        cfg = options.pipeline
         write_json_atomic(out / "run.json", {
             "input": info.name, "webcam": info.is_webcam,
             "video": {"width": info.width, "height": info.height, "fps": info.fps,
                       "frame_count": info.frame_count},
             "camera": cam.to_dict(), "camera_scaled": scaled,
-            "components": {"detector": options.detector, "tracker": options.tracker, "state": "geometric",
-                           "risk": options.risk, "ego_speed": options.ego_speed},
+            "components": {**{k: getattr(cfg, k).name for k in ("detector", "tracker", "state", "risk")},
+                           "ego_speed": None if cfg.ego_speed is None else cfg.ego_speed.name},
             "speed_mps": options.speed_mps, "threaded": options.threaded,
             "frames": n, "t_first": t_first, "t_last": t_last,
             "timings_ms_mean": means, "wall_s": wall, "frames_per_s": summary.fps,

@@ -1,0 +1,145 @@
+"""The shared pipeline options (monorarp/config_options.py): every command's options give the
+PipelineConfig it built before, defaults are the config's, bad names are one line and exit 2."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pytest
+
+from monorarp import registry
+from monorarp.cli import build_parser, main
+from monorarp.config_options import (CLI_EGO_SPEED, WARNING_THRESHOLD_S, add_pipeline_options,
+                                     default_pipeline_config, pipeline_config)
+from monorarp.errors import UserError
+from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = ROOT / "monorarp" / "models" / "centernet_vehicle.onnx"
+
+
+def C(name: str, **kw) -> ComponentConfig:
+    return ComponentConfig(name=name, kwargs=kw)
+
+
+def parse(*argv: str) -> argparse.Namespace:
+    return build_parser().parse_args(list(argv))
+
+
+def run_config(*argv: str) -> PipelineConfig:
+    from harness.commands.detector_args import pipeline_config as harness_config
+
+    return harness_config(parse("run", "s.yaml", *argv))
+
+
+# -------------------------------------------------------------------- round trips
+def test_run_defaults_are_what_run_built_before():
+    assert run_config() == PipelineConfig(detector=C("centernet"), tracker=C("particle"),
+                                          state=C("geometric", velocity="kalman"), risk=C("ttc"),
+                                          ego_speed=C("ground_track"), horizon=None)
+
+
+def test_run_options_round_trip():
+    cfg = run_config("--detector", "oracle", "--oracle-jitter", "1", "--tracker", "sort", "--risk", "monte_carlo",
+                     "--velocity", "difference", "--ego-speed", "lsd_period", "--horizon", "online")
+    assert cfg == PipelineConfig(detector=C("oracle", jitter_px=1.0), tracker=C("sort"),
+                                 state=C("geometric", velocity="difference"), risk=C("monte_carlo"),
+                                 ego_speed=C("lsd_period"), horizon=C("online"))
+    assert run_config("--ego-speed", "none", "--refine-bottom", "off").ego_speed is None
+    assert run_config("--refine-bottom", "off").detector == C("centernet", refine_bottom=False)
+
+
+def test_video_options_round_trip():
+    cfg = pipeline_config(parse("video", "in.mp4", "--camera", "c.yaml", "--tracker", "kcf", "--risk",
+                                "monte_carlo", "--horizon", "online", "--ego-speed", "None"))
+    # as the video command built it before, plus the state estimator's velocity written out (its default)
+    assert cfg == PipelineConfig(detector=C("centernet"), tracker=C("kcf"), state=C("geometric", velocity="kalman"),
+                                 risk=C("monte_carlo"), ego_speed=None, horizon=C("online"))
+
+
+def test_defaults_identical_across_commands():
+    from harness.commands.detector_args import pipeline_config as harness_config
+
+    run = run_config()
+    video = pipeline_config(parse("video", "in.mp4", "--camera", "c.yaml"))
+    bench = harness_config(parse("bench", "trackers"))
+    card = harness_config(parse("scorecard", "--out", "x"))
+    kitti = pipeline_config(parse("eval", "kitti", "d", "--out", "x"))
+    assert run == video == default_pipeline_config()
+    assert run.ego_speed == C(CLI_EGO_SPEED) and PipelineConfig().ego_speed is None
+    for cfg in (run, video, bench, card, kitti):
+        assert cfg.detector.name == PipelineConfig().detector.name
+        assert cfg.tracker.name == PipelineConfig().tracker.name
+        assert cfg.risk == PipelineConfig().risk and cfg.warning == PipelineConfig().warning
+    assert parse("eval", "kitti", "d", "--out", "x").detector == PipelineConfig().detector.name
+    assert parse("run", "s.yaml").warning_threshold == WARNING_THRESHOLD_S
+
+
+def test_onnx_path_is_the_detector_name_and_builds(tmp_path):
+    cfg = pipeline_config(parse("video", "in.mp4", "--camera", "c.yaml", "--detector", str(MODEL),
+                                "--refine-bottom", "on"))
+    assert cfg.detector == C(str(MODEL), refine_bottom=True)
+    from monorarp.camera import CameraModel
+    from monorarp.detection import CenterNetDetector
+
+    pipe = Pipeline.from_config(cfg, CameraModel.from_fov(640, 360, 70.0, height_m=1.3))
+    assert isinstance(pipe.detector, CenterNetDetector)
+
+
+# ------------------------------------------------------------------------- refusals
+@pytest.mark.parametrize("argv, option", [
+    (["run", "missing.yaml", "--risk", "nope"], "--risk"),
+    (["run", "missing.yaml", "--ego-speed", "nope"], "--ego-speed"),
+    (["run", "missing.yaml", "--horizon", "nope"], "--horizon"),
+    (["run", "missing.yaml", "--detector", "nope"], "--detector"),
+    (["scorecard", "--out", "x", "--tracker", "nope"], "--tracker"),
+])
+def test_unknown_name_is_one_line_exit_2(argv, option, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"{option}: unknown" in err and "available:" in err
+
+
+def test_video_leaves_names_to_the_run_after_its_input_checks(tmp_path, capsys):
+    args = parse("video", "in.mp4", "--camera", "c.yaml", "--tracker", "nope")
+    assert pipeline_config(args, check=False).tracker == C("nope")
+    assert main(["video", str(tmp_path / "absent.mp4"), "--camera", "c.yaml", "--tracker", "nope"]) == 2
+    assert "nope" not in capsys.readouterr().err     # the missing camera/input is the error reported
+
+
+def test_options_that_do_not_apply_are_refused():
+    with pytest.raises(UserError, match="--refine-bottom"):
+        run_config("--detector", "yolo", "--refine-bottom", "on")
+    with pytest.raises(UserError, match="need --detector oracle"):
+        run_config("--oracle-jitter", "1")
+
+
+def test_validate_names_before_any_model_loads(tmp_path):
+    cfg = PipelineConfig(detector=C(str(tmp_path / "absent.onnx")), tracker=C("nope"))
+    with pytest.raises(registry.UnknownComponentError, match="unknown tracker 'nope'"):
+        Pipeline.from_config(cfg)    # the missing model file is never opened
+
+
+def test_only_chosen_stages_get_options():
+    p = argparse.ArgumentParser()
+    add_pipeline_options(p, stages=("tracker",))
+    args = p.parse_args([])
+    assert not hasattr(args, "detector") and not hasattr(args, "risk")
+    assert pipeline_config(args) == PipelineConfig()
+    with pytest.raises(ValueError, match="no options for stages"):
+        add_pipeline_options(argparse.ArgumentParser(), stages=("warp",))
+
+
+# --------------------------------------------------------------------- sweep variants
+def test_variant_config_and_run_mapping(tmp_path):
+    from harness.sweep.spec import Variant, run_mapping
+
+    cfg = Variant(name="v", detector="m.onnx", tracker="kcf", velocity="difference").pipeline_config(tmp_path)
+    assert cfg.detector.name == str((tmp_path / "m.onnx").resolve())
+    assert cfg.ego_speed is None and cfg.warning == C("fcw") and cfg.state == C("geometric", velocity="difference")
+    mapping = run_mapping(cfg)
+    assert list(mapping) == ["detector", "tracker", "state", "risk", "ego_speed", "warning"]   # no horizon key
+    assert PipelineConfig.model_validate(mapping) == cfg
+    assert "horizon" in run_mapping(Variant(name="h", horizon="online").pipeline_config(tmp_path))
