@@ -22,7 +22,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from monorarp.ego_speed import GroundTrackEgoSpeed, LsdPeriodEgoSpeed  # noqa: E402
+from monorarp.ego_speed.ground_track import GroundTrackEgoSpeed
+from monorarp.ego_speed.lsd_period import LsdPeriodEgoSpeed  # noqa: E402
 from synthetic_road import RoadSpec, default_camera, sequence  # noqa: E402
 
 METHODS = {"ground_track": GroundTrackEgoSpeed, "lsd_period": LsdPeriodEgoSpeed}

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from monorarp.risk_mc import MonteCarloRisk
+from monorarp.risk_mc.estimator import MonteCarloRisk
 from monorarp.risk_mc import rollout_numba
 from monorarp.types import ObjectState
 

@@ -81,7 +81,7 @@ def test_onnx_path_is_the_detector_name_and_builds(tmp_path):
                                 "--refine-bottom", "on"))
     assert cfg.detector == C(str(MODEL), refine_bottom=True)
     from monorarp.camera import CameraModel
-    from monorarp.detection import CenterNetDetector
+    from monorarp.detection.centernet import CenterNetDetector
 
     pipe = Pipeline.from_config(cfg, CameraModel.from_fov(640, 360, 70.0, height_m=1.3))
     assert isinstance(pipe.detector, CenterNetDetector)

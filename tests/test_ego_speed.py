@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 
 from monorarp.camera import CameraModel
-from monorarp.ego_speed import EgoSpeedError, GroundTrackEgoSpeed, LsdPeriodEgoSpeed
+from monorarp.ego_speed.geometry import EgoSpeedError
+from monorarp.ego_speed.ground_track import GroundTrackEgoSpeed
+from monorarp.ego_speed.lsd_period import LsdPeriodEgoSpeed
 from monorarp.ego_speed.geometry import GroundRows, row_of_distance
 from monorarp.ego_speed.lane_lines import LaneLine, LaneLineFinder
 from monorarp.ego_speed.regression import pooled_slope

@@ -325,7 +325,8 @@ def images(draw, cam: CameraModel) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def ego_speed_estimators():
-    from monorarp.ego_speed import GroundTrackEgoSpeed, LsdPeriodEgoSpeed
+    from monorarp.ego_speed.ground_track import GroundTrackEgoSpeed
+    from monorarp.ego_speed.lsd_period import LsdPeriodEgoSpeed
 
     return {"ground_track": GroundTrackEgoSpeed(SMALL_CAM), "lsd_period": LsdPeriodEgoSpeed(SMALL_CAM)}
 
@@ -349,7 +350,7 @@ def test_ego_speed_on_random_images(ego_speed_estimators, data, name):
 @pytest.mark.parametrize("image", [np.zeros((90, 161, 3), np.uint8), np.zeros((10, 10, 3), np.uint8),
                                    np.zeros((0, 0, 3), np.uint8), np.zeros((90,), np.uint8)])
 def test_ego_speed_refuses_wrong_image_shapes(ego_speed_estimators, name, image):
-    from monorarp.ego_speed import EgoSpeedError
+    from monorarp.ego_speed.geometry import EgoSpeedError
 
     with pytest.raises(EgoSpeedError):
         ego_speed_estimators[name].update(image, 0.0)

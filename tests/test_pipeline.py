@@ -167,7 +167,7 @@ def test_risk_stage_gets_the_same_frames_ego_speed_in_both_runners():
 
 
 def test_monte_carlo_threaded_equals_sync_with_ego_speed():
-    from monorarp.risk_mc import MonteCarloRisk
+    from monorarp.risk_mc.estimator import MonteCarloRisk
 
     def build():
         p = make()

@@ -21,7 +21,7 @@ import pytest
 from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.behavior import IDMVehicle
 
-from monorarp.risk_mc import MonteCarloRisk
+from monorarp.risk_mc.estimator import MonteCarloRisk
 from monorarp.risk_mc.drivers import DriverDistribution, DriverParams, Truncated
 from monorarp.risk_mc.idm import idm_acceleration
 from monorarp.risk_mc.rollout import RolloutConfig, Scene, mobil_sides, simulate

@@ -20,8 +20,6 @@ from monorarp.types import Detector
 if TYPE_CHECKING:
     from monorarp.pipeline import ComponentConfig
 
-__all__ = ["CenterNetDetector", "YoloDetector", "ModelError", "build_detector", "is_model_path", "load_detector"]
-
 
 def is_model_path(name: str | Path) -> bool:
     """Whether a detector ``name`` is a model file (``.onnx``, any case) rather than a registered name."""

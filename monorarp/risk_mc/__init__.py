@@ -5,7 +5,3 @@
 ``rollout_numba`` (the same simulation compiled with numba), ``estimator``
 (the registered ``("risk", "monte_carlo")`` component).
 """
-
-from monorarp.risk_mc.estimator import MonteCarloRisk
-
-__all__ = ["MonteCarloRisk"]
