@@ -5,16 +5,19 @@ import of the harness while ``monorarp render``/``run``/``sweep`` live there.
 
 The harness's third-party dependencies (simulator, renderer, scoring) are the
 ``harness`` extra. Without it the harness commands are still listed, and running
-one prints one line naming what to install (exit 2): whether the import fails
-while the command registers or when it runs.
+one prints one line naming what to install (exit 2) before it writes anything: the
+extra's packages are checked first (a command that needs none sets ``needs_harness=False``),
+and an import that still fails, while the command registers or when it runs, says the same.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
+import re
 import sys
-from importlib.metadata import entry_points
+from importlib.metadata import PackageNotFoundError, distribution, entry_points, packages_distributions, requires
 
 from monorarp import __version__
 from monorarp.errors import UserError
@@ -26,6 +29,31 @@ def _missing_dependency(error: ModuleNotFoundError) -> str | None:
     """Top-level name of the missing third-party module, or None when a module of this project is missing."""
     name = (error.name or "").split(".")[0]
     return name if name and name not in ("monorarp", "harness") else None
+
+
+def missing_harness_module() -> str | None:
+    """The first distribution (not installed) or module (not importable) of the ``harness`` extra,
+    None when all are there or this package's metadata is unavailable (a source tree on sys.path)."""
+    try:
+        reqs = requires("monorarp") or []
+    except PackageNotFoundError:
+        return None
+    dists = [re.match(r"[A-Za-z0-9._-]+", r).group(0) for r in reqs if re.search(r"extra\s*==\s*.harness.", r)]
+    modules = packages_distributions()
+    for dist in dists:
+        try:
+            distribution(dist)
+        except PackageNotFoundError:
+            return dist
+        norm = re.sub(r"[-_.]+", "-", dist).lower()
+        for module, owners in modules.items():
+            if norm in {re.sub(r"[-_.]+", "-", o).lower() for o in owners} and module.isidentifier():
+                try:
+                    if importlib.util.find_spec(module) is None:
+                        return module
+                except (ImportError, ValueError):
+                    return module
+    return None
 
 
 def _needs_harness(command: str, missing: str) -> int:
@@ -66,6 +94,10 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    if getattr(args, "needs_harness", getattr(args.func, "__module__", "").startswith("harness.")):
+        missing = missing_harness_module()   # before the command writes anything
+        if missing is not None:
+            return _needs_harness(args.command, missing)
     try:
         return int(args.func(args) or 0)
     except UserError as e:

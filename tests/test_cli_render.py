@@ -176,7 +176,7 @@ def test_failure_mid_run_keeps_previous_run(renders, tmp_path, monkeypatch, caps
     shutil.copytree(a, out)
     before = _snapshot(out)
 
-    import harness.render as render_pkg
+    import harness.render.renderer as render_pkg
 
     original = render_pkg.Renderer.render
     calls = {"n": 0}

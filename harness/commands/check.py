@@ -23,7 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--update", action="store_true",
                    help="write a new baseline from RESULTS (keeping existing tolerances) instead of checking")
     p.add_argument("--failures-only", action="store_true", help="print only the rows that fail")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, needs_harness=False)   # pydantic, numpy and yaml only
 
 
 def run(args: argparse.Namespace) -> int:
