@@ -23,7 +23,6 @@ run); set ``MONORARP_FUZZ_RANDOM=1`` for fresh ones.
 from __future__ import annotations
 
 import collections
-import copy
 import json
 import os
 import shutil
@@ -37,10 +36,10 @@ import yaml
 from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 
-from fuzz_docs import Doc, documents, json_values, materialise, mutated, to_json
+from fuzz_docs import Doc, documents, materialise, to_json
 from monorarp.cli import main
 from monorarp.errors import UserError
-from monorarp.readers import MAX_CONFIG_BYTES, MAX_JSON_BYTES
+from monorarp.readers import MAX_JSON_BYTES
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = int(os.environ.get("MONORARP_FUZZ_EXAMPLES", "60"))

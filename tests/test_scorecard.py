@@ -10,7 +10,7 @@ import pytest
 from sklearn.metrics import average_precision_score, roc_auc_score
 
 from harness.scorecard import score
-from harness.scorecard.protocols import KMH, ProtocolError, contact_time, expand_protocol, load_protocol
+from harness.scorecard.protocols import ProtocolError, contact_time, expand_protocol, load_protocol
 from harness.scoring import algo
 from harness.scoring.warnings import warning_metrics
 from harness.truth import FrameTruth

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import cv2
-import motmetrics as mm
 import numpy as np
 import pytest
 

@@ -7,7 +7,6 @@ Exit status: 0 every test passed and no run failed, 1 a test failed or a run fai
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from monorarp.errors import UserError
@@ -16,7 +15,7 @@ SUITE_CHOICES = ("nhtsa", "ncap", "cut_in", "nominal", "risk", "all")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from harness.commands.timeout_args import add_run_timeout_argument
+    from harness.commands.executor_args import add_executor_arguments
     from monorarp.config_options import add_pipeline_options
 
     p = sub.add_parser(
@@ -35,12 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--trials", type=int, default=None, metavar="N", help="trials per test (default: the protocol's)")
     p.add_argument("--frames", type=int, default=None, metavar="N", help="cap on frames per run (default none)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
-    p.add_argument("--executor", choices=("local", "ray"), default="local")
-    p.add_argument("--workers", type=int, default=1, metavar="N", help="parallel runs (default 1)")
-    p.add_argument("--address", default=None, metavar="auto|HOST:PORT", help="Ray cluster (with --executor ray)")
-    p.add_argument("--resume", action="store_true", help="skip runs already finished in DIR")
-    add_run_timeout_argument(p)
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_executor_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -49,11 +43,9 @@ def run(args: argparse.Namespace) -> int:
     from harness.scorecard.run import SUITES, ScorecardOptions, run_scorecard
 
     from harness.commands.detector_args import pipeline_config
-    from harness.commands.timeout_args import check_run_timeout
+    from harness.commands.executor_args import check_executor_arguments
 
-    if args.workers < 1:
-        raise UserError(f"--workers: must be a positive integer, got {args.workers}")
-    check_run_timeout(args.run_timeout)
+    check_executor_arguments(args)
     if args.warning_threshold is not None and not 0 < args.warning_threshold <= 10:
         raise UserError(f"--warning-threshold: must be in (0, 10] s, got {args.warning_threshold}")
     if args.protocol and args.suite:

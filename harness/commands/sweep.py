@@ -12,8 +12,7 @@ import argparse
 from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
-from harness.commands.timeout_args import add_run_timeout_argument, check_run_timeout
-from monorarp.errors import UserError
+from harness.commands.executor_args import add_executor_arguments, check_executor_arguments
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,30 +24,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("spec", type=Path, metavar="SPEC.yaml", help="sweep spec file")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (new or empty, or "
                    "a previous sweep's with --resume)")
-    p.add_argument("--executor", choices=("local", "ray"), default="local",
-                   help="local: this machine (process pool when --workers > 1); ray: Ray tasks (default: local)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="parallel runs: processes (local) or CPUs of the local Ray instance (default 1)")
-    p.add_argument("--address", default=None, metavar="auto|HOST:PORT",
-                   help="Ray cluster to connect to (with --executor ray); default: start a local Ray instance")
-    p.add_argument("--resume", action="store_true",
-                   help="skip runs already finished in DIR with the same parameters (also after the sweep was "
-                        "killed: what it left half-done is removed and run again)")
-    add_run_timeout_argument(p)
+    add_executor_arguments(p)
     p.add_argument("--videos", action="store_true", help="also write annotated.mp4 for every run (slower)")
     add_cache_arguments(p)
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from harness.sweep.orchestrate import REPORT_HTML, run_sweep
 
-    if args.workers < 1:
-        raise UserError(f"--workers: must be a positive integer, got {args.workers}")
-    check_run_timeout(args.run_timeout)
-    if args.address is not None and args.executor != "ray":
-        raise UserError("--address is only for --executor ray")
+    check_executor_arguments(args)
     res = run_sweep(args.spec, args.out, executor=args.executor, workers=args.workers, resume=args.resume,
                     address=args.address, videos=args.videos, progress=not args.no_progress,
                     cache=lambda: cache_from_args(args), run_timeout_s=args.run_timeout)
