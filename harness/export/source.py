@@ -19,15 +19,12 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from harness.run_outputs import CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME, VIDEO_NAME
 from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
 from monorarp.types import Frame
 
-CAMERA_NAME = "camera.json"
-GROUND_TRUTH_NAME = "ground_truth.jsonl"
-VIDEO_NAME = "frames.mp4"
-METRICS_NAME = "metrics.json"
 #: Ground-truth object fields the exports read.
 OBJECT_FIELDS = ("id", "box", "visibility", "d_long", "corners_cam", "length", "width")
 
