@@ -90,14 +90,11 @@ def create(kind: str, name: str, **kwargs: Any) -> Any:
     return get_factory(kind, name)(**kwargs)
 
 
-def instantiate(factory: Callable[..., Any], kwargs: Mapping[str, Any], camera: Any = None) -> Any:
-    """Call ``factory(**kwargs)``, adding ``camera`` when the factory uses one and kwargs don't set it."""
-    kwargs = dict(kwargs)
+def build(kind: str, name: str, kwargs: Mapping[str, Any] | None = None, camera: Any = None) -> Any:
+    """The component ``kind``/``name`` built with ``kwargs`` and, when its factory uses one and ``kwargs``
+    does not set it, the camera model."""
+    factory = get_factory(kind, name)
+    kwargs = dict(kwargs or {})
     if camera is not None and "camera" not in kwargs and uses(factory, "camera"):
         kwargs["camera"] = camera
     return factory(**kwargs)
-
-
-def build(kind: str, name: str, kwargs: Mapping[str, Any] | None = None, camera: Any = None) -> Any:
-    """The component ``kind``/``name`` built with ``kwargs`` and, where it uses one, the camera model."""
-    return instantiate(get_factory(kind, name), kwargs or {}, camera)
