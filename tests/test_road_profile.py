@@ -207,3 +207,25 @@ def test_level_profile_renders_byte_identical_frames():
     hill = list(rendered_frames(_scenario([{"start_m": 40.0, "grade": 0.04, "transition_m": 30.0}]), n_frames=1))
     assert not np.array_equal(hill[0][0].image, plain[0][0].image)
     assert all(o.s_long is not None for o in hill[0][1].objects)
+
+
+# ------------------------------------------------------------------ the state estimator's grade term
+def test_grade_gain_is_the_tilted_plane_derivative_and_widens_d_y_std():
+    from monorarp.camera import CameraModel
+    from monorarp.state import StateEstimator
+
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, math.radians(2.0))
+    est = StateEstimator(cam, grade_std=0.02)
+    d_y = np.array([10.0, 40.0, 80.0])
+    Y0 = d_y + est.contact_offset_m
+    tan_a = cam.height_m / Y0                                          # the flat reading's ray
+    dg = 1e-6
+    numeric = (cam.height_m / (tan_a - dg) - cam.height_m / (tan_a + dg)) / (2 * dg)   # |dY/dg| on z = g y
+    assert np.allclose(est.grade_gain(d_y), numeric, rtol=1e-4)
+    filt = np.array([0.1, 0.5, 1.0])
+    plain = StateEstimator(cam).distance_std(d_y, filt, 0.0)
+    wide = est.distance_std(d_y, filt, 0.0)
+    assert np.allclose(wide ** 2 - plain ** 2, (numeric * 0.02) ** 2, rtol=1e-4)
+    assert np.array_equal(StateEstimator(cam, grade_std=0.0).distance_std(d_y, filt, 0.0), plain)
+    with pytest.raises(ValueError, match="grade_std"):
+        StateEstimator(cam, grade_std=-0.01)
