@@ -31,8 +31,7 @@ Z90 = 1.6448536269514722
 def _rows(run: Path) -> np.ndarray:
     """(N, 4) d_long, d_y_est, d_y_std, beyond-the-change flag of the scored object-frames of one run."""
     params = json.loads((run / "run.json").read_text())["params"]
-    scen = params["scenario"]
-    seg = scen["road"]["profile"][0]
+    seg = params["scenario"]["road"]["profile"][0]
     end_ahead = seg["start_m"] + seg["transition_m"]          # from the camera at t = 0
     ego_x = {}
     with open(run / "ground_truth.jsonl") as f:
@@ -57,7 +56,8 @@ def _stats(d, est, std, sel) -> tuple:
     rel = (est[sel] - d[sel]) / d[sel]
     ok = np.isfinite(std[sel])
     err, s = np.abs(est[sel] - d[sel])[ok], std[sel][ok]
-    return (int(sel.sum()), float(np.median(np.abs(rel))), float(np.median(rel)), float(np.median(np.abs(est[sel] - d[sel]))),
+    return (int(sel.sum()), float(np.median(np.abs(rel))), float(np.median(rel)),
+            float(np.median(np.abs(est[sel] - d[sel]))),
             float(np.mean(err <= Z90 * s)) if ok.any() else np.nan,
             float(np.mean(2 * Z90 * s)) if ok.any() else np.nan)
 
@@ -77,7 +77,8 @@ def main(sweep: str) -> int:
         for name, sel in (("5-40 m", (d >= 5) & (d < 40)), ("40-80 m", (d >= 40) & (d < 80)),
                           ("beyond the change", beyond > 0), ("all 0-80 m", np.ones(len(d), bool))):
             n, rel, bias, ab, cov, wid = _stats(d, est, std, sel)
-            print(f"| {variant} | {grade:+.2f} | {name} | {n} | {rel:.3f} | {bias:+.3f} | {ab:.2f} | {cov:.3f} | {wid:.1f} |")
+            print(f"| {variant} | {grade:+.2f} | {name} | {n} | {rel:.3f} | {bias:+.3f} | {ab:.2f} | {cov:.3f} | "
+                  f"{wid:.1f} |")
     return 0
 
 

@@ -5,6 +5,7 @@ rendering byte-identical frames."""
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -229,3 +230,18 @@ def test_grade_gain_is_the_tilted_plane_derivative_and_widens_d_y_std():
     assert np.array_equal(StateEstimator(cam, grade_std=0.0).distance_std(d_y, filt, 0.0), plain)
     with pytest.raises(ValueError, match="grade_std"):
         StateEstimator(cam, grade_std=-0.01)
+
+
+def test_shipped_hill_scenario_and_grade_sweep():
+    from harness.scenario import load_scenario
+    from harness.sweep.expand import load_and_expand
+
+    root = Path(__file__).resolve().parents[1] / "scenarios" / "conditions"
+    hill = load_scenario(root / "hill.yaml")
+    seg = hill.road.profile[0]
+    assert (seg.start_m, seg.grade) == (50.0, 0.04)
+    assert all(v.distance_m >= seg.start_m + seg.transition_m for v in hill.vehicles if v.name != "right_near")
+    exp = load_and_expand(root / "grade.yaml")
+    grades = {t.scenario["road"]["profile"][0]["grade"] for t in exp.tasks}
+    assert grades == {-0.04, -0.02, 0.0, 0.02, 0.04} and len(exp.tasks) == 60
+    assert {t.pipeline["state"]["kwargs"].get("grade_std", 0.0) for t in exp.tasks} == {0.0, 0.01, 0.025}
