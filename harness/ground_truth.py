@@ -4,6 +4,12 @@ Distances (m), velocities (m/s) and TTC (s) in the ego frame of :mod:`monorarp.c
 with a moving camera), boxes (px) and 3-D corners (m) in the frame's true camera; one object per
 vehicle with at least one visible pixel, sorted by id. Every field's definition:
 docs/formats.md (``ground_truth.jsonl``); the moving camera's ``camera`` block: docs/camera_motion.md.
+
+On a road with a vertical profile (``world.profile``) the ego frame is the ego body's (parallel to
+the road under the ego, :mod:`harness.render.geometry`), boxes and corners come from the same 3-D
+placement the renderer draws, velocities are 3-D (a vehicle at ``x`` climbs at ``slope(x) vx``),
+and ``s_long`` is the along-road arc length from the camera's foot point (the camera minus its
+height along the ego's up axis) to the middle of the rear face's ground edge: docs/road_profile.md.
 """
 
 from __future__ import annotations
@@ -13,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from harness.render.geometry import box_corners_ego, road_vectors_to_ego, vehicles_footprints_ego
+from harness.render.geometry import ego_frame_world, road_vectors_to_ego, vehicle_corners_ego
 from harness.render.meshes import vehicle_height
 from harness.truth import CameraTruth, EgoTruth, FrameTruth, ObjectTruth
 from harness.world import WorldState
@@ -67,11 +73,16 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
     record = FrameTruth(frame=int(world.frame), t=float(world.t), ego=ego_truth, camera=pose)
     if not vehicles:
         return record
-    foot = vehicles_footprints_ego(vehicles, ego, camera)                        # (N, 4, 2)
     heights = np.array([vehicle_height(v.length, v.width) for v in vehicles])
-    corners_cam = camera.ego_to_cam(box_corners_ego(foot, heights, camera))      # (N, 8, 3)
+    corners_ego = vehicle_corners_ego(vehicles, ego, camera, heights, world.profile)   # (N, 8, 3)
+    foot = corners_ego[:, :4, :2]                                                # (N, 4, 2)
+    corners_cam = camera.ego_to_cam(corners_ego)                                 # (N, 8, 3)
     centres = foot.mean(axis=1)                                                  # footprint centres
-    v_rel = road_vectors_to_ego(np.array([[v.vx - ego.vx, v.vy - ego.vy] for v in vehicles]), ego)
+    if world.profile is None:
+        v_rel = road_vectors_to_ego(np.array([[v.vx - ego.vx, v.vy - ego.vy] for v in vehicles]), ego)
+        s_long = [None] * len(vehicles)
+    else:
+        v_rel, s_long = _profile_motion(world, vehicles, camera, corners_ego)
     ex, ey = ego_extent(ego.length, ego.width, camera.forward_offset_m, camera.lateral_offset_m)
     ttc = time_to_collision(foot[..., 0].min(1), foot[..., 0].max(1), foot[..., 1].min(1), foot[..., 1].max(1),
                             v_rel[:, 0], v_rel[:, 1], ex, ey, horizon_s)
@@ -94,5 +105,22 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
             length=float(v.length),
             width=float(v.width),
             crashed=bool(v.crashed),
+            s_long=s_long[k],
         ))
     return replace(record, objects=tuple(objects))
+
+
+def _profile_motion(world: WorldState, vehicles: list, camera: CameraModel,
+                    corners_ego: np.ndarray) -> tuple[np.ndarray, list[float]]:
+    """On a profiled road: (N, 2) ego-frame relative velocities (x right, y ahead; m/s) and each
+    vehicle's along-road distance ``s_long`` (m) from the camera's foot point to its rear face."""
+    profile, ego = world.profile, world.ego
+    cam_w, r_w_from_ego = ego_frame_world(ego, camera, profile)
+
+    def velocity_w(v) -> np.ndarray:
+        return np.array([v.vx, -v.vy, float(profile.slope(v.x)) * v.vx])
+
+    v_rel = np.array([(velocity_w(v) - velocity_w(ego)) @ r_w_from_ego for v in vehicles])[:, :2]
+    rear_x = (cam_w + corners_ego[:, :2].mean(axis=1) @ r_w_from_ego.T)[:, 0]   # rear face, ground, W X
+    foot_x = (cam_w - camera.height_m * r_w_from_ego[:, 2])[0]
+    return v_rel, [float(s) for s in profile.arc_length(foot_x, rear_x)]

@@ -11,10 +11,11 @@ import math
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
 from harness.camera_motion import CameraMotion
 from harness.config_io import validate_config
+from harness.road_profile import MAX_GRADE
 
 from monorarp.camera import CameraError, CameraModel
 from monorarp.errors import UserError
@@ -44,6 +45,16 @@ class Markings(_Model):
         return self
 
 
+class GradeChange(_Model):
+    """From ``start_m`` (road x ahead of the camera at t = 0, the origin of ``distance_m``) the grade
+    turns to ``grade`` (rise/run, + uphill) along a parabolic vertical curve ``transition_m`` long
+    (:mod:`harness.road_profile`)."""
+
+    start_m: float = Field(ge=-1000, le=5000)
+    grade: float = Field(ge=-MAX_GRADE, le=MAX_GRADE, description="rise/run after the change; + uphill")
+    transition_m: float = Field(0.0, ge=0, le=2000, description="length of the vertical curve, m")
+
+
 class Road(_Model):
     lanes: int = Field(3, ge=1, le=8)
     lane_width_m: float = Field(4.0, ge=2.5, le=6.0)
@@ -51,6 +62,23 @@ class Road(_Model):
     shoulder_width_m: float = Field(2.5, ge=0, le=10)
     speed_limit_mps: float = Field(33.0, gt=0, le=60)
     markings: Markings = Markings()
+    profile: list[GradeChange] = Field([], description="vertical profile: grade changes in order; empty: level")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Road":
+        for i in range(1, len(self.profile)):
+            prev, seg = self.profile[i - 1], self.profile[i]
+            if seg.start_m < prev.start_m + prev.transition_m:
+                raise ValueError(f"profile.{i}.start_m: {seg.start_m} m lies before the end of the previous "
+                                 f"change's transition ({prev.start_m + prev.transition_m} m)")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        data = handler(self)
+        if not self.profile:   # a level road dumps as before the field existed
+            data.pop("profile", None)
+        return data
 
 
 class IDMParams(_Model):

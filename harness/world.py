@@ -3,11 +3,15 @@
 Road frame (highway-env's): ``x`` along the road (m), ``y`` across it (m,
 increasing towards higher lane indices, i.e. to the right of travel), heading
 in rad from +x towards +y. Lane 0 is the leftmost lane; its centre is y = 0.
+With a vertical ``profile`` (:mod:`harness.road_profile`) the point ``(x, y)`` lies at height
+``profile.z(x)``; without one the road is the plane z = 0.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+
+from harness.road_profile import RoadProfile
 
 
 @dataclass(frozen=True)
@@ -32,3 +36,4 @@ class WorldState:
     t: float                # = frame / fps, s
     ego: VehicleState
     vehicles: tuple[VehicleState, ...] = field(default_factory=tuple)  # every non-ego vehicle
+    profile: RoadProfile | None = None   # the road's vertical profile; None: level

@@ -92,6 +92,9 @@ class StateEstimator:
             0.09), added to ``d_y_std`` (not to the filter: it is a per-vehicle bias, not noise).
         horizon_std_px: one-sigma (px) of the calibrated horizon row when no horizon reading is given
             (the pitch the mount lets wander); added to ``d_y_std`` through ``d d_y / d row``.
+        grade_std: one-sigma (rise/run) of the road's grade beyond the camera relative to the road
+            under the ego (the flat-ground assumption's unknown); added to ``d_y_std`` through
+            :meth:`grade_gain`. 0 (default): the ground is taken as exactly flat.
         reinit_sigmas: a measurement this many sigmas of its innovation away from the prediction
             (either axis) restarts the track's filter at the measurement with the wide prior, as a
             new sighting: a jump of that size is the tracker's box moving to another vehicle (or to
@@ -107,7 +110,7 @@ class StateEstimator:
                  init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0,
                  vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX,
                  side_cut_lateral_std_mps: float = 2.0, reinit_sigmas: float = 5.0,
-                 contact_offset_std_m: float = 0.09, horizon_std_px: float = 0.0,
+                 contact_offset_std_m: float = 0.09, horizon_std_px: float = 0.0, grade_std: float = 0.0,
                  edge_std_px: float = 0.9, border_edge_std_px: float = 2.7,
                  lateral_pixel_std: float | None = None, robust_sigmas: float | None = None,
                  bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
@@ -145,11 +148,13 @@ class StateEstimator:
             self._bias_var = np.array([float(lat), float(bias_pixel_std)]) ** 2   # (x, y) axes, px^2
         self.reinit_sigmas = float(reinit_sigmas)
         for name, val in (("contact_offset_std_m", contact_offset_std_m), ("horizon_std_px", horizon_std_px),
-                          ("edge_std_px", edge_std_px), ("border_edge_std_px", border_edge_std_px)):
+                          ("edge_std_px", edge_std_px), ("border_edge_std_px", border_edge_std_px),
+                          ("grade_std", grade_std)):
             if not (np.isfinite(val) and val >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {val}")
         self.contact_offset_std_m, self.horizon_std_px = float(contact_offset_std_m), float(horizon_std_px)
         self.edge_std_px, self.border_edge_std_px = float(edge_std_px), float(border_edge_std_px)
+        self.grade_std = float(grade_std)
         self._extra_px_var = 0.0      # this frame's white horizon noise (px^2), added to the measurement's
         n = 2 if motion == "cv" else 3
         self._prior_var = np.array([0.0, init_vel_std ** 2, init_acc_std ** 2][:n])
@@ -252,16 +257,29 @@ class StateEstimator:
         h = self.camera.height_m
         return (Y * Y + h * h) / (h * self.camera.fy)
 
+    def grade_gain(self, d_y: np.ndarray) -> np.ndarray:
+        """``|d d_y / d grade|`` (m per unit rise/run): distance change per unit of road grade.
+
+        A ground that rises with grade ``g`` from the camera's foot point (``z = g y``) meets the ray
+        of depression angle ``a`` at ``Y = h_c / (tan a + g)``; the flat reading is ``h_c / tan a``,
+        so ``dY/dg = -Y^2 / h_c`` at ``g = 0`` (``Y = d_y + contact_offset_m``, the contact line).
+        """
+        Y = np.asarray(d_y, dtype=float) + self.contact_offset_m
+        return Y * Y / self.camera.height_m
+
     def distance_std(self, d_y: np.ndarray, filter_std: np.ndarray, horizon_std_px: float,
                      side_cut: np.ndarray | None = None) -> np.ndarray:
         """One-sigma of ``d_y`` (m): the filter's; the horizon row's (``horizon_std_px``) and the box
         bottom edge's persistent error (``edge_std_px``, ``border_edge_std_px`` where ``side_cut``),
         both through :meth:`horizon_gain` (the distance reads their difference); the contact
-        line's. In quadrature."""
+        line's; the road grade's (``grade_std``, through :meth:`grade_gain`). In quadrature."""
         edge = np.where(side_cut, self.border_edge_std_px, self.edge_std_px) if side_cut is not None \
             else self.edge_std_px
         px = np.hypot(horizon_std_px, edge)
-        return np.sqrt(filter_std ** 2 + (self.horizon_gain(d_y) * px) ** 2 + self.contact_offset_std_m ** 2)
+        var = filter_std ** 2 + (self.horizon_gain(d_y) * px) ** 2 + self.contact_offset_std_m ** 2
+        if self.grade_std > 0:
+            var = var + (self.grade_gain(d_y) * self.grade_std) ** 2
+        return np.sqrt(var)
 
     def update(self, tracks: Sequence[Track], t: float,
                horizon: HorizonReading | None = None) -> dict[int, ObjectState]:

@@ -40,6 +40,7 @@ from OpenGL import GL  # noqa: E402
 from harness.render import effects, geometry, meshes, road, shading, visibility  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
 from harness.scenario import Scenario  # noqa: E402
+from harness.simulation.placement import road_profile  # noqa: E402
 from harness.world import VehicleState, WorldState  # noqa: E402
 from monorarp.camera import CameraModel  # noqa: E402
 
@@ -208,7 +209,8 @@ class Renderer:
             self._light_w, self._intensity = np.asarray(self._lighting.light_w, dtype=float), self._lighting.intensity
         self._scene = pyrender.Scene(bg_color=(*sky, 1.0), ambient_light=(0.0, 0.0, 0.0))
         self._material = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0))
-        for tm in road.road_trimeshes(scenario.road).values():
+        self._profile = road_profile(scenario.road.profile, scenario.camera.forward_offset_m)
+        for tm in road.road_trimeshes(scenario.road, self._profile).values():
             colors = self._shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w)
             _add_mesh(self._scene, _flat_mesh(tm.vertices[tm.faces], colors, self._material))
         c = self.camera
@@ -262,7 +264,7 @@ class Renderer:
             dims = (v.length, v.width)
             hbin = int(round(v.heading / HEADING_BIN_RAD))
             entry = self._vehicles.get(v.id)
-            pose = geometry.vehicle_pose_world(v)
+            pose = geometry.vehicle_pose_world(v, self._profile)
             if entry is None or entry.dims != dims:
                 if entry is not None:
                     self._scene.remove_node(entry.node)
@@ -299,10 +301,9 @@ class Renderer:
         c = self.frame_camera
         vehicles = tuple(world.vehicles)
         nodes = self._sync_vehicles(vehicles)
-        self._scene.set_pose(self._cam_node, geometry.camera_pose_world(world.ego, c))
-        foot = geometry.vehicles_footprints_ego(vehicles, world.ego, c)
+        self._scene.set_pose(self._cam_node, geometry.camera_pose_world(world.ego, c, self._profile))
         heights = np.array([meshes.vehicle_height(v.length, v.width) for v in vehicles])
-        corners_cam = c.ego_to_cam(geometry.box_corners_ego(foot, heights, c))
+        corners_cam = c.ego_to_cam(geometry.vehicle_corners_ego(vehicles, world.ego, c, heights, self._profile))
         boxes = visibility.projected_boxes(corners_cam, c, ZNEAR_M)
         in_front = (corners_cam[..., 2] > ZNEAR_M).any(axis=1)
         drawn = (in_front & (boxes[:, 2] >= -0.5) & (boxes[:, 0] <= c.width - 0.5)

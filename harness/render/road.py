@@ -9,6 +9,10 @@ Lane boundary i (0..lanes) is the line y = (i - 0.5) * lane_width; a marking of
 ``solid_edges`` (else asphalt). Shoulders extend ``shoulder_width_m`` beyond each
 edge line's centre (at least to its outer side); grass beyond, and before/after
 the road's ends.
+
+With a vertical profile (:mod:`harness.road_profile`) every rectangle is cut across the road at
+the profile's sample points (1 m apart inside each vertical curve) and each vertex lifted to
+``z(x)``, so the surfaces bend with the road and still tile it.
 """
 
 from __future__ import annotations
@@ -16,9 +20,12 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from harness.road_profile import RoadProfile
 from harness.scenario import Road
 
 GRASS_EXTENT_M = 2000.0
+PROFILE_STEP_M = 1.0
+"""Spacing (m) of the cuts across the road inside a vertical curve."""
 
 SURFACE_COLORS = {  # RGB 0..255
     "asphalt": (60, 60, 62),
@@ -69,13 +76,29 @@ def road_rectangles(road: Road) -> dict[str, np.ndarray]:
     return result
 
 
-def rectangles_trimesh(rects: np.ndarray, color: tuple[int, int, int]) -> trimesh.Trimesh:
-    """Road-frame rectangles -> one upward-facing ground mesh in the world frame W (Y = -y)."""
+def split_along(rects: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """Rectangles ``[x0, x1, y0, y1]`` cut at every ``x`` of ``xs`` strictly inside them."""
+    xs = np.sort(np.asarray(xs, dtype=float))
+    out = []
+    for x0, x1, y0, y1 in rects:
+        edges = np.r_[x0, xs[(xs > x0) & (xs < x1)], x1]
+        out.append(np.stack([edges[:-1], edges[1:], np.full(len(edges) - 1, y0), np.full(len(edges) - 1, y1)], -1))
+    return np.concatenate(out, axis=0) if out else rects
+
+
+def rectangles_trimesh(rects: np.ndarray, color: tuple[int, int, int],
+                       profile: RoadProfile | None = None) -> trimesh.Trimesh:
+    """Road-frame rectangles -> one upward-facing ground mesh in the world frame W (Y = -y),
+    level or following ``profile``."""
+    if profile is not None:
+        rects = split_along(rects, profile.curved_x(PROFILE_STEP_M))
     x0, x1, y0, y1 = rects.T
     # Corners in W, counter-clockwise seen from above (+Z): Y = -y.
     corners = np.stack([np.stack([x0, -y1], -1), np.stack([x1, -y1], -1),
                         np.stack([x1, -y0], -1), np.stack([x0, -y0], -1)], axis=1)
     verts = np.concatenate([corners.reshape(-1, 2), np.zeros((corners.size // 2, 1))], axis=1)
+    if profile is not None:
+        verts[:, 2] = profile.z(verts[:, 0])
     base = 4 * np.arange(len(rects))[:, None]
     faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]], axis=0)
     mesh = trimesh.Trimesh(verts, faces, process=False)
@@ -83,6 +106,6 @@ def rectangles_trimesh(rects: np.ndarray, color: tuple[int, int, int]) -> trimes
     return mesh
 
 
-def road_trimeshes(road: Road) -> dict[str, trimesh.Trimesh]:
+def road_trimeshes(road: Road, profile: RoadProfile | None = None) -> dict[str, trimesh.Trimesh]:
     """One merged W-frame mesh per surface kind (asphalt, marking, shoulder, grass)."""
-    return {k: rectangles_trimesh(r, SURFACE_COLORS[k]) for k, r in road_rectangles(road).items() if len(r)}
+    return {k: rectangles_trimesh(r, SURFACE_COLORS[k], profile) for k, r in road_rectangles(road).items() if len(r)}

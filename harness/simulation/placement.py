@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.road_profile import RoadProfile
+
 EGO_START_X_M = 250.0
 """Ego centre at t = 0: far enough from the road start for vehicles placed up to 200 m behind."""
 
@@ -43,6 +45,12 @@ def placed_centre_x(ego_x: float, camera_forward_offset_m: float, distance_m: fl
     rear face is at ``ego_x + offset + distance`` and the centre half a length further.
     """
     return ego_x + camera_forward_offset_m + distance_m + length_m / 2
+
+
+def road_profile(segments, camera_forward_offset_m: float) -> RoadProfile | None:
+    """A scenario's ``road.profile`` in absolute road ``x``: each ``start_m`` is measured from the
+    camera at t = 0 (like a placed vehicle's ``distance_m``); None for a level road."""
+    return RoadProfile.from_segments(segments, EGO_START_X_M + camera_forward_offset_m)
 
 
 def cut_in_distance(gap_m: float, at_s: float, vehicle_speed_mps: float, ego_speed_mps: float) -> float:

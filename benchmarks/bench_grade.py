@@ -1,0 +1,89 @@
+"""Figures of the road-grade sweep: distance error by span and beyond the grade change, and the
+stated 90 % distance interval's coverage and mean width.
+
+Run the sweep first, then print its table (one row per variant and grade, seeds pooled by
+object-frame from each run's ``per_object.csv``; the same selection as ``metrics.json``: counted,
+matched object-frames with a state and ``0 <= d_long < 80``)::
+
+    monorarp sweep scenarios/conditions/grade.yaml --out /tmp/grade
+    python benchmarks/bench_grade.py /tmp/grade
+
+"Beyond the change": the object's rear face lies past the end of the first vertical curve
+(``start_m + transition_m`` ahead of the camera at t = 0, less the distance the camera has driven),
+i.e. the vehicle stands on the new grade. Errors are ``|d_y - d_long|`` (the metrics' distance,
+see docs/road_profile.md); relative errors divide by ``d_long``; ``bias`` is the median of
+``(d_y - d_long) / d_long``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+Z90 = 1.6448536269514722
+
+
+def _rows(run: Path) -> np.ndarray:
+    """(N, 4) d_long, d_y_est, d_y_std, beyond-the-change flag of the scored object-frames of one run."""
+    params = json.loads((run / "run.json").read_text())["params"]
+    seg = params["scenario"]["road"]["profile"][0]
+    end_ahead = seg["start_m"] + seg["transition_m"]          # from the camera at t = 0
+    ego_x = {}
+    with open(run / "ground_truth.jsonl") as f:
+        for line in f:
+            rec = json.loads(line)
+            ego_x[rec["frame"]] = rec["ego"]["x"]
+    x0 = ego_x[0]
+    out = []
+    with open(run / "per_object.csv", newline="") as f:
+        for r in csv.DictReader(f):
+            if r["matched"] == "1" and r["counted"] == "1" and r["d_y_est"] and r["d_long_gt"]:
+                d = float(r["d_long_gt"])
+                if 0 <= d < 80:
+                    beyond = d > end_ahead - (ego_x[int(r["frame"])] - x0)
+                    out.append((d, float(r["d_y_est"]), float(r["d_y_std"]) if r["d_y_std"] else np.nan, beyond))
+    return np.array(out, dtype=float).reshape(-1, 4)
+
+
+def _stats(d, est, std, sel) -> tuple:
+    if not sel.any():
+        return (0, np.nan, np.nan, np.nan, np.nan, np.nan)
+    rel = (est[sel] - d[sel]) / d[sel]
+    ok = np.isfinite(std[sel])
+    err, s = np.abs(est[sel] - d[sel])[ok], std[sel][ok]
+    return (int(sel.sum()), float(np.median(np.abs(rel))), float(np.median(rel)),
+            float(np.median(np.abs(est[sel] - d[sel]))),
+            float(np.mean(err <= Z90 * s)) if ok.any() else np.nan,
+            float(np.mean(2 * Z90 * s)) if ok.any() else np.nan)
+
+
+def main(sweep: str) -> int:
+    pooled: dict[tuple[str, float], list[np.ndarray]] = defaultdict(list)
+    for run in sorted(Path(sweep, "runs").iterdir()):
+        if not (run / "per_object.csv").exists():
+            continue
+        params = json.loads((run / "run.json").read_text())["params"]
+        pooled[(params["variant"], float(params["grid"]["road.profile.0.grade"]))].append(_rows(run))
+    print("| variant | grade | span | object-frames | median rel. error | median rel. bias | median abs. error (m) | "
+          "90 % coverage | mean width (m) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for variant, grade in sorted(pooled):
+        d, est, std, beyond = np.concatenate(pooled[(variant, grade)]).T
+        for name, sel in (("5-40 m", (d >= 5) & (d < 40)), ("40-80 m", (d >= 40) & (d < 80)),
+                          ("beyond the change", beyond > 0), ("all 0-80 m", np.ones(len(d), bool))):
+            n, rel, bias, ab, cov, wid = _stats(d, est, std, sel)
+            print(f"| {variant} | {grade:+.2f} | {name} | {n} | {rel:.3f} | {bias:+.3f} | {ab:.2f} | {cov:.3f} | "
+                  f"{wid:.1f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        print("usage: python benchmarks/bench_grade.py SWEEP_DIR", file=sys.stderr)
+        sys.exit(2)
+    sys.exit(main(sys.argv[1]))
