@@ -221,9 +221,8 @@ class Renderer:
             if entry is None or entry.dims != dims:
                 if entry is not None:
                     self._scene.remove_node(entry.node)
-                tm = meshes.vehicle_trimesh(v.length, v.width, meshes.vehicle_color(self._palette_seed, v.id))
-                entry = _Vehicle(None, dims, tm.vertices[tm.faces], tm.face_normals,
-                                 tm.visual.face_colors[:, :3].astype(float), hbin)
+                faces = meshes.vehicle_faces(v.length, v.width, meshes.vehicle_color(self._palette_seed, v.id))
+                entry = _Vehicle(None, dims, *faces, hbin)
                 entry.node = _add_mesh(self._scene, self._vehicle_mesh(entry), pose=pose)
                 self._vehicles[v.id] = entry
             else:
