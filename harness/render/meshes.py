@@ -57,6 +57,7 @@ class VehicleLayout:
         return self.rear_axle_x + self.length / 2
 
 
+@functools.lru_cache(maxsize=1024)
 def vehicle_layout(length: float, width: float) -> VehicleLayout:
     """The mesh dimensions for a vehicle of ``length`` x ``width`` metres."""
     if length > TRUCK_MIN_LENGTH_M:

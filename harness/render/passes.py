@@ -79,8 +79,17 @@ class Passes:
 
     def update(self, scene: pyrender.Scene) -> None:
         """Upload meshes new to the scene, free removed ones, and take the node poses and draw order
-        for the passes that follow (once per frame, after the poses are set)."""
-        self._inner._update_context(scene, RenderFlags.FLAT)
+        for the passes that follow (once per frame, after the poses are set).
+
+        pyrender's ``_update_context`` without its texture and shadow-map bookkeeping (untextured meshes, no shadows)."""
+        inner, meshes = self._inner, scene.meshes
+        for mesh in meshes - inner._meshes:
+            for p in mesh.primitives:
+                p._add_to_context()
+        for mesh in inner._meshes - meshes:
+            for p in mesh.primitives:
+                p.delete()
+        inner._meshes = meshes
         cam_node = scene.main_camera_node
         poses = {n: scene.get_pose(n) for n in scene.mesh_nodes}
         poses[cam_node] = scene.get_pose(cam_node)
