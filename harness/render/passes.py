@@ -34,6 +34,7 @@ class _Framebuffer:
     """A colour (RGBA8) + depth (24 bit) framebuffer of one size, multisampled or not."""
 
     def __init__(self, width: int, height: int, samples: int) -> None:
+        self.width, self.height = width, height
         self.colour, self.depth = GL.glGenRenderbuffers(2)
         for rb, fmt in ((self.colour, GL.GL_RGBA), (self.depth, GL.GL_DEPTH_COMPONENT24)):
             GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
@@ -66,7 +67,7 @@ class Passes:
 
     def __init__(self, pr: pyrender.OffscreenRenderer) -> None:
         self._inner = pr._renderer
-        self._fbs: dict[tuple[int, int, int], _Framebuffer] = {}
+        self._fbs: dict[str, _Framebuffer] = {}
         self._locations: dict[tuple[int, str], int] = {}
         self._programs: dict[tuple, object] = {}
         self._frame: tuple | None = None     # (draw order, poses, V, cam_pos) of the current frame
@@ -104,11 +105,17 @@ class Passes:
                                                                                ProgramFlags.USE_MATERIAL)
         return program
 
-    def _fb(self, width: int, height: int, samples: int) -> _Framebuffer:
-        key = (width, height, samples)
-        if key not in self._fbs:
-            self._fbs[key] = _Framebuffer(width, height, samples)
-        return self._fbs[key]
+    def _fb(self, role: str, width: int, height: int, samples: int = 0) -> _Framebuffer:
+        """The framebuffer of ``role``, grown to hold ``width`` x ``height``: a pass draws into its lower-left
+        corner and reads that back (the pixels are the same as in a framebuffer of the pass's size), so
+        sub-window id passes of changing sizes share one framebuffer instead of reallocating."""
+        fb = self._fbs.get(role)
+        if fb is None or fb.width < width or fb.height < height:
+            if fb is not None:
+                fb.delete()
+                width, height = max(width, fb.width), max(height, fb.height)
+            fb = self._fbs[role] = _Framebuffer(width, height, samples)
+        return fb
 
     def _set(self, program, name: str, setter, *args) -> None:
         key = (program._program_id, name)
@@ -191,7 +198,7 @@ class Passes:
     def colour(self, scene: pyrender.Scene, width: int, height: int,
                want_depth: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
         """(H, W, 3) uint8 BGR image, top row first; with ``want_depth`` also (H, W) float32 window depth 0..1."""
-        ms, out = self._fb(width, height, SAMPLES), self._fb(width, height, 0)
+        ms, out = self._fb("colour", width, height, SAMPLES), self._fb("resolved", width, height)
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, ms.fb)
         self._draw(scene, width, height, RenderFlags.FLAT, None)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, ms.fb)
@@ -212,7 +219,7 @@ class Passes:
 
     def ids(self, scene: pyrender.Scene, width: int, height: int, seg_node_map: dict) -> np.ndarray:
         """(H, W) uint32 codes R | G << 8 | B << 16 of ``seg_node_map``'s colours (0: nothing), bottom row first."""
-        fb = self._fb(width, height, 0)
+        fb = self._fb("ids", width, height)
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb.fb)
         self._draw(scene, width, height, RenderFlags.SEG, seg_node_map)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb.fb)
