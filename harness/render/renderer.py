@@ -7,11 +7,11 @@ set changes) and the camera pose are updated. Lighting is a directional light
 face and baked into vertex colours (:mod:`harness.render.shading`): the road
 once, a vehicle again only when its heading moves into another 1-degree bin.
 
-Two passes per frame: a colour pass (pyrender's FLAT shader, 4x MSAA, no
-shadows) and an exact id pass (``RenderFlags.SEG``, multisampling off, so each
-pixel holds the vehicle covering its centre; ids colour-encoded as id + 1 in 24
-bits). The ego is not drawn. :mod:`harness.render.visibility` explains the
-extra sub-window id renders behind ``visibility``.
+Two passes per frame, drawn by :mod:`harness.render.passes` with pyrender's shaders: a
+colour pass (FLAT shader, 4x MSAA, no shadows) and an exact id pass (SEG shader,
+single-sampled, so each pixel holds the vehicle covering its centre; ids colour-encoded
+as id + 1 in 24 bits). The ego is not drawn. :mod:`harness.render.visibility` explains
+the extra sub-window id renders behind ``visibility``.
 
 A scenario's ``conditions:`` block (time of day, fog, rain, lens; :mod:`harness.render.effects`)
 changes the scene lighting and, through the colour pass's depth buffer (read only then), adds
