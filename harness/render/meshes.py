@@ -120,7 +120,8 @@ def vehicle_trimesh(length: float, width: float, color: tuple[int, int, int]) ->
     return trimesh.util.concatenate(_vehicle_parts(length, width, color))
 
 
-def vehicle_faces(length: float, width: float, color: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def vehicle_faces(length: float, width: float,
+                  color: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`vehicle_trimesh`'s triangles (F, 3, 3), face normals (F, 3) and face colours (F, 3) (0..255, float),
     the shape built once per footprint (the convex hulls are the cost) and painted per call."""
     triangles, normals, colors, painted = _vehicle_shape(length, width)

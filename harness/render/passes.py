@@ -3,9 +3,11 @@
 pyrender keeps the scene, the GL context, the uploaded meshes and the shader programs;
 this module replaces its per-pass work (``Renderer._forward_pass`` and the framebuffer
 read), issuing the same draws with the same GL state and uniforms, so the pixels are
-pyrender's: per pass the camera uniforms, blend/cull/fill state and material uniforms
-are set once instead of per mesh, uniform locations are looked up once per program, node
-poses are computed once, and every size of framebuffer is kept instead of reallocated.
+pyrender's (``tests/test_render_passes.py``): per pass the camera uniforms, blend/cull/fill
+state and material uniforms are set once instead of per mesh, uniform locations are looked
+up once per program, node poses and the draw order once per frame, and each framebuffer
+(colour, resolved, ids) is kept and only grown, where pyrender reallocated its own whenever
+the size changed (every sub-window id pass).
 
 Draw order (:func:`sorted_mesh_nodes`): far to near as pyrender does, ties in insertion
 order (``node._draw_order``; pyrender iterates a ``set``, so nodes at the same distance,
@@ -13,10 +15,10 @@ like the road meshes all at the origin, were drawn in an order that changed from
 renderer to the next, and where their depths tie a pixel took either colour).
 
 Colour pass: pyrender's FLAT shader into a 4x multisampled framebuffer, resolved by a
-blit, read as RGBA and returned as BGR (and, when asked, the resolved window depth 0..1). Id pass: pyrender's
-SEG shader, multisampling off, into a single-sample framebuffer (each pixel holds the
-primitive covering its centre, as multisampling-off rasterisation into the 4x buffer
-did), read as one uint32 per pixel.
+blit, read as RGBA (Mesa's read without conversion) and returned as BGR; with ``want_depth``
+also the resolved window depth 0..1. Id pass: pyrender's SEG shader into a single-sample
+framebuffer (each pixel holds the primitive covering its centre, as pyrender's
+multisampling-off rasterisation into its 4x buffer did), read as one uint32 per pixel.
 """
 
 from __future__ import annotations
@@ -82,7 +84,8 @@ class Passes:
         """Upload meshes new to the scene, free removed ones, and take the node poses and draw order
         for the passes that follow (once per frame, after the poses are set).
 
-        pyrender's ``_update_context`` without its texture and shadow-map bookkeeping (untextured meshes, no shadows)."""
+        pyrender's ``_update_context`` without its texture and shadow-map bookkeeping (untextured
+        meshes, no shadows)."""
         inner, meshes = self._inner, scene.meshes
         for mesh in meshes - inner._meshes:
             for p in mesh.primitives:
@@ -206,7 +209,7 @@ class Passes:
         GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, out.fb)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        rgba = np.empty((height, width, 4), dtype=np.uint8)    # RGBA: Mesa's read without conversion
+        rgba = np.empty((height, width, 4), dtype=np.uint8)
         GL.glReadPixels(0, 0, width, height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, rgba)
         bgr = cv2.flip(cv2.cvtColor(rgba, cv2.COLOR_RGBA2BGR), 0)
         if not want_depth:

@@ -87,7 +87,7 @@ _draw_orders = itertools.count()
 
 
 def _add_mesh(scene: pyrender.Scene, mesh: pyrender.Mesh, pose: np.ndarray | None = None) -> pyrender.Node:
-    """``scene.add`` that records the node's insertion order (the draw-order tie-break of :mod:`~harness.render.passes`)."""
+    """``scene.add`` recording the node's insertion order (the draw-order tie-break, :mod:`~harness.render.passes`)."""
     node = scene.add(mesh, pose=pose)
     node._draw_order = next(_draw_orders)
     return node
