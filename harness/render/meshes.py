@@ -14,6 +14,7 @@ the tyres touch the ground along the line X = axle, Z = 0.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,6 +57,7 @@ class VehicleLayout:
         return self.rear_axle_x + self.length / 2
 
 
+@functools.lru_cache(maxsize=1024)
 def vehicle_layout(length: float, width: float) -> VehicleLayout:
     """The mesh dimensions for a vehicle of ``length`` x ``width`` metres."""
     if length > TRUCK_MIN_LENGTH_M:
@@ -84,17 +86,23 @@ def vehicle_color(palette_seed: int, vehicle_id: int) -> tuple[int, int, int]:
     return tuple(int(c) for c in np.round(rgb))
 
 
+def _paint(m: trimesh.Trimesh, color) -> trimesh.Trimesh:
+    """Face colours ``color``; None marks the part as painted in the vehicle's colour (left for later)."""
+    if color is None:
+        m.metadata["painted"] = True
+    else:
+        m.visual.face_colors = (*color, 255)
+    return m
+
+
 def _box(x0, x1, y0, y1, z0, z1, color) -> trimesh.Trimesh:
     m = trimesh.creation.box(extents=(x1 - x0, y1 - y0, z1 - z0))
     m.apply_translation(((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2))
-    m.visual.face_colors = (*color, 255)
-    return m
+    return _paint(m, color)
 
 
 def _hull(points, color) -> trimesh.Trimesh:
-    m = trimesh.convex.convex_hull(np.asarray(points, dtype=float))
-    m.visual.face_colors = (*color, 255)
-    return m
+    return _paint(trimesh.convex.convex_hull(np.asarray(points, dtype=float)), color)
 
 
 def _wheel(x: float, y_outer: float, side: int, radius: float, width: float) -> trimesh.Trimesh:
@@ -109,6 +117,33 @@ def _wheel(x: float, y_outer: float, side: int, radius: float, width: float) -> 
 
 def vehicle_trimesh(length: float, width: float, color: tuple[int, int, int]) -> trimesh.Trimesh:
     """One merged mesh (face colours) of a vehicle in its model frame."""
+    return trimesh.util.concatenate(_vehicle_parts(length, width, color))
+
+
+def vehicle_faces(length: float, width: float,
+                  color: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`vehicle_trimesh`'s triangles (F, 3, 3), face normals (F, 3) and face colours (F, 3) (0..255, float),
+    the shape built once per footprint (the convex hulls are the cost) and painted per call."""
+    triangles, normals, colors, painted = _vehicle_shape(length, width)
+    colors = colors.copy()
+    colors[painted] = color
+    return triangles, normals, colors
+
+
+@functools.lru_cache(maxsize=256)
+def _vehicle_shape(length: float, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Read-only triangles, face normals, face colours (painted faces unset) and painted-face mask of one footprint."""
+    parts = _vehicle_parts(length, width, None)
+    tm = trimesh.util.concatenate(parts)
+    painted = np.repeat([bool(p.metadata.get("painted")) for p in parts], [len(p.faces) for p in parts])
+    out = (tm.vertices[tm.faces], tm.face_normals, tm.visual.face_colors[:, :3].astype(float), painted)
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+def _vehicle_parts(length: float, width: float, color: tuple[int, int, int] | None) -> list[trimesh.Trimesh]:
+    """The parts of :func:`vehicle_trimesh`; ``color`` None leaves the painted ones uncoloured (marked ``painted``)."""
     L = vehicle_layout(length, width)
     hl, hw = length / 2, width / 2
     parts: list[trimesh.Trimesh] = []
@@ -144,4 +179,4 @@ def vehicle_trimesh(length: float, width: float, color: tuple[int, int, int]) ->
     for ax in axles:
         for side in (-1, 1):
             parts.append(_wheel(ax, L.wheel_y, side, L.wheel_radius, L.wheel_width))
-    return trimesh.util.concatenate(parts)
+    return parts

@@ -7,11 +7,11 @@ set changes) and the camera pose are updated. Lighting is a directional light
 face and baked into vertex colours (:mod:`harness.render.shading`): the road
 once, a vehicle again only when its heading moves into another 1-degree bin.
 
-Two passes per frame: a colour pass (pyrender's FLAT shader, 4x MSAA, no
-shadows) and an exact id pass (``RenderFlags.SEG``, multisampling off, so each
-pixel holds the vehicle covering its centre; ids colour-encoded as id + 1 in 24
-bits). The ego is not drawn. :mod:`harness.render.visibility` explains the
-extra sub-window id renders behind ``visibility``.
+Two passes per frame, drawn by :mod:`harness.render.passes` with pyrender's shaders: a
+colour pass (FLAT shader, 4x MSAA, no shadows) and an exact id pass (SEG shader,
+single-sampled, so each pixel holds the vehicle covering its centre; ids colour-encoded
+as id + 1 in 24 bits). The ego is not drawn. :mod:`harness.render.visibility` explains
+the extra sub-window id renders behind ``visibility``.
 
 A scenario's ``conditions:`` block (time of day, fog, rain, lens; :mod:`harness.render.effects`)
 changes the scene lighting and, through the colour pass's depth buffer (read only then), adds
@@ -24,11 +24,11 @@ shifted by +0.5 (checked by the tests against ``cv2.projectPoints``).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import itertools
 import math
 import os
-import types
 from dataclasses import dataclass, field
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
 
-from harness.render import effects, geometry, meshes, road, shading, visibility  # noqa: E402
+from harness.render import effects, geometry, meshes, passes, road, shading, visibility  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
 from harness.scenario import Scenario  # noqa: E402
 from harness.simulation.placement import road_profile  # noqa: E402
@@ -84,75 +84,36 @@ def _seg_colour(code: int) -> tuple[int, int, int]:
     return code & 0xFF, (code >> 8) & 0xFF, (code >> 16) & 0xFF
 
 
-def _decode(seg: np.ndarray) -> np.ndarray:
-    """(H, W, >=3) uint8 id render -> (H, W) int32 codes (0 = nothing)."""
-    return (seg[..., 0].astype(np.int32) | (seg[..., 1].astype(np.int32) << 8)
-            | (seg[..., 2].astype(np.int32) << 16))
-
-
-def _read_colour_only(self, scene, flags):
-    """Replacement for pyrender's framebuffer read: resolve and read colour only
-    (no depth read/linearisation), RGBA for id passes so rows are always aligned."""
-    width, height = self._main_fb_dims
-    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
-    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
-    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
-    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
-    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-    fmt, ch = (GL.GL_RGBA, 4) if flags & pyrender.RenderFlags.SEG else (GL.GL_RGB, 3)
-    buf = GL.glReadPixels(0, 0, width, height, fmt, GL.GL_UNSIGNED_BYTE)
-    colour = np.frombuffer(buf, dtype=np.uint8).reshape(height, width, ch)[::-1]
-    if flags & pyrender.RenderFlags.SEG or not getattr(self, "_want_depth", False):
-        return colour, None
-    # conditions (fog, lamps, motion): the window depth (0..1) of the colour pass, one sample per pixel
-    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
-    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_DEPTH_BUFFER_BIT, GL.GL_NEAREST)
-    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
-    dbuf = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
-    return colour, np.frombuffer(dbuf, dtype=np.float32).reshape(height, width)[::-1]
-
-
 _draw_orders = itertools.count()
 
 
 def _add_mesh(scene: pyrender.Scene, mesh: pyrender.Mesh, pose: np.ndarray | None = None) -> pyrender.Node:
-    """``scene.add`` that records the node's insertion order (the tie-break of :func:`_sorted_mesh_nodes`)."""
+    """``scene.add`` recording the node's insertion order (the draw-order tie-break, :mod:`~harness.render.passes`)."""
     node = scene.add(mesh, pose=pose)
     node._draw_order = next(_draw_orders)
     return node
 
 
-def _sorted_mesh_nodes(self, scene):
-    """Replacement for pyrender's draw order: far to near as pyrender does, ties in insertion order.
-
-    pyrender iterates a ``set`` of nodes, so nodes at the same distance (the road meshes,
-    all at the origin) were drawn in an order that changed from one renderer to the next;
-    where their depths tie (coplanar, or at range within depth precision) a pixel then
-    took either colour. A frame is now a pure function of its world state.
-    """
-    cam = scene.get_pose(scene.main_camera_node)[:3, 3]
-    nodes = sorted(scene.mesh_nodes, key=lambda n: getattr(n, "_draw_order", -1))
-    solid = [n for n in nodes if not n.mesh.is_transparent]
-    trans = [n for n in nodes if n.mesh.is_transparent]
-    far_first = lambda n: -np.linalg.norm(scene.get_pose(n)[:3, 3] - cam)  # noqa: E731
-    return sorted(solid, key=far_first) + sorted(trans, key=far_first)
-
-
 def _release(pr: pyrender.OffscreenRenderer) -> None:
-    """Free ``pr``'s GL context; the shared EGL display is terminated only by the last live renderer."""
+    """Free ``pr``'s GL context; the shared EGL display is terminated only by the last live renderer.
+
+    pyrender's own ``delete`` does the same and then a full ``gc.collect()`` (0.3-0.7 s with the
+    simulator loaded), which nothing here needs.
+    """
     global _live_renderers
     _live_renderers -= 1
     platform = pr._platform
+    platform.make_current()
+    pr._renderer.delete()
     if _live_renderers > 0 and getattr(platform, "_egl_display", None) is not None:
         from OpenGL import EGL
 
-        platform.make_current()
-        pr._renderer.delete()
         EGL.eglMakeCurrent(platform._egl_display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
         EGL.eglDestroyContext(platform._egl_display, platform._egl_context)
         platform._egl_context = platform._egl_display = None
     else:
-        pr.delete()
+        platform.delete_context()
+    pr._renderer = pr._platform = None
 
 
 @functools.cache
@@ -221,10 +182,7 @@ class Renderer:
         global _live_renderers
         self._pr: pyrender.OffscreenRenderer | None = pyrender.OffscreenRenderer(c.width, c.height)
         _live_renderers += 1
-        inner = self._pr._renderer
-        inner._read_main_framebuffer = types.MethodType(_read_colour_only, inner)
-        inner._sorted_mesh_nodes = types.MethodType(_sorted_mesh_nodes, inner)
-        inner._want_depth = self._lighting is not None
+        self._passes = passes.Passes(self._pr)
         self._ray_factor = None if self._lighting is None else effects.ray_length_factor(c)
 
     def _shade(self, albedo: np.ndarray, normals: np.ndarray, light: np.ndarray) -> np.ndarray:
@@ -238,6 +196,8 @@ class Renderer:
         """Free the GL context (other live renderers keep theirs)."""
         if self._pr is None:
             return
+        with self._gl():
+            self._passes.delete()
         _release(self._pr)
         self._pr = None
 
@@ -268,9 +228,8 @@ class Renderer:
             if entry is None or entry.dims != dims:
                 if entry is not None:
                     self._scene.remove_node(entry.node)
-                tm = meshes.vehicle_trimesh(v.length, v.width, meshes.vehicle_color(self._palette_seed, v.id))
-                entry = _Vehicle(None, dims, tm.vertices[tm.faces], tm.face_normals,
-                                 tm.visual.face_colors[:, :3].astype(float), hbin)
+                faces = meshes.vehicle_faces(v.length, v.width, meshes.vehicle_color(self._palette_seed, v.id))
+                entry = _Vehicle(None, dims, *faces, hbin)
                 entry.node = _add_mesh(self._scene, self._vehicle_mesh(entry), pose=pose)
                 self._vehicles[v.id] = entry
             else:
@@ -281,10 +240,19 @@ class Renderer:
             nodes.append(entry.node)
         return nodes
 
-    def _set_intrinsics(self, fx: float, fy: float, cx: float, cy: float, width: int, height: int) -> None:
+    def _set_intrinsics(self, fx: float, fy: float, cx: float, cy: float) -> None:
         self._cam.fx, self._cam.fy = fx, fy
         self._cam.cx, self._cam.cy = cx + PIXEL_CENTRE_SHIFT, cy + PIXEL_CENTRE_SHIFT
-        self._pr.viewport_width, self._pr.viewport_height = width, height
+
+    @contextlib.contextmanager
+    def _gl(self):
+        """This renderer's GL context current (other renderers may share the thread)."""
+        platform = self._pr._platform
+        platform.make_current()
+        try:
+            yield
+        finally:
+            platform.make_uncurrent()
 
     def _move_camera(self, world: WorldState) -> None:
         """Set :attr:`frame_camera` to the true camera of ``world``'s frame (once per frame)."""
@@ -317,21 +285,22 @@ class Renderer:
         """Colour image, id mask and unoccluded pixel counts of one world state."""
         vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
         c = self.frame_camera
-        self._set_intrinsics(c.fx, c.fy, c.cx, c.cy, c.width, c.height)
-        rgb, depth = self._pr.render(self._scene, flags=pyrender.RenderFlags.FLAT)
-        seg_map = {n: _seg_colour(v.id + 1) for n, v, d in zip(nodes, vehicles, drawn) if d}
-        if seg_map:
-            seg, _ = self._pr.render(self._scene, flags=pyrender.RenderFlags.SEG, seg_node_map=seg_map)
-            id_mask = _decode(seg) - 1
-        else:
-            id_mask = np.full((c.height, c.width), -1, dtype=np.int32)
-        full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn)
+        self._set_intrinsics(c.fx, c.fy, c.cx, c.cy)
+        with self._gl():
+            self._passes.update(self._scene)
+            bgr, depth = self._passes.colour(self._scene, c.width, c.height, want_depth=self._lighting is not None)
+            seg_map = {n: _seg_colour(v.id + 1) for n, v, d in zip(nodes, vehicles, drawn) if d}
+            if seg_map:
+                id_mask = self._passes.ids(self._scene, c.width, c.height, seg_map)[::-1].astype(np.int32) - 1
+            else:
+                id_mask = np.full((c.height, c.width), -1, dtype=np.int32)
+            full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn)
         if self._lighting is None:
-            image = apply_sensor(np.ascontiguousarray(rgb[..., ::-1]), self._noise_std, self._blur_px,
+            image = apply_sensor(bgr, self._noise_std, self._blur_px,
                                  self._seed, world.frame)
         else:
             z = effects.linear_depth(depth, ZNEAR_M, ZFAR_M)
-            image = effects.apply(np.ascontiguousarray(rgb[..., ::-1]), z, id_mask, world, self.scenario,
+            image = effects.apply(bgr, z, id_mask, world, self.scenario,
                                   self._lighting, self._ray_factor)
         return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else c)
 
@@ -346,19 +315,21 @@ class Renderer:
         todo = [index[vid] for vid in visible if force or need[index[vid]]]
         try:
             for win, members in visibility.plan_full_renders(boxes, todo, c.width, c.height, c.width * c.height):
-                self._set_intrinsics(*win.intrinsics(c), win.width, win.height)
-                seg, _ = self._pr.render(self._scene, flags=pyrender.RenderFlags.SEG,
-                                         seg_node_map={nodes[i]: _seg_colour(k + 1) for k, i in enumerate(members)})
-                n_px = np.bincount(_decode(seg).ravel(), minlength=len(members) + 1)
+                self._set_intrinsics(*win.intrinsics(c))
+                codes = self._passes.ids(self._scene, win.width, win.height,
+                                         {nodes[i]: _seg_colour(k + 1) for k, i in enumerate(members)})
+                n_px = np.bincount(codes.ravel(), minlength=len(members) + 1)
                 for k, i in enumerate(members):
                     vid = vehicles[i].id
                     full[vid] = max(float(n_px[k + 1]) * win.scale ** 2, full[vid])
         finally:
-            self._set_intrinsics(c.fx, c.fy, c.cx, c.cy, c.width, c.height)
+            self._set_intrinsics(c.fx, c.fy, c.cx, c.cy)
         return full
 
     def full_pixels_rendered(self, world: WorldState, id_mask: np.ndarray) -> dict[int, float]:
         """Like ``RenderedFrame.full_pixels`` but every vehicle through a sub-window render
         (no shortcut for unhidden vehicles); for tests and checks."""
         vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
-        return self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=True)
+        with self._gl():
+            self._passes.update(self._scene)
+            return self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=True)

@@ -1,0 +1,231 @@
+"""The colour and id passes, drawn with OpenGL directly over a pyrender scene.
+
+pyrender keeps the scene, the GL context, the uploaded meshes and the shader programs;
+this module replaces its per-pass work (``Renderer._forward_pass`` and the framebuffer
+read), issuing the same draws with the same GL state and uniforms, so the pixels are
+pyrender's (``tests/test_render_passes.py``): per pass the camera uniforms, blend/cull/fill
+state and material uniforms are set once instead of per mesh, uniform locations are looked
+up once per program, node poses and the draw order once per frame, and each framebuffer
+(colour, resolved, ids) is kept and only grown, where pyrender reallocated its own whenever
+the size changed (every sub-window id pass).
+
+Draw order (:func:`sorted_mesh_nodes`): far to near as pyrender does, ties in insertion
+order (``node._draw_order``; pyrender iterates a ``set``, so nodes at the same distance,
+like the road meshes all at the origin, were drawn in an order that changed from one
+renderer to the next, and where their depths tie a pixel took either colour).
+
+Colour pass: pyrender's FLAT shader into a 4x multisampled framebuffer, resolved by a
+blit, read as RGBA (Mesa's read without conversion) and returned as BGR; with ``want_depth``
+also the resolved window depth 0..1. Id pass: pyrender's SEG shader into a single-sample
+framebuffer (each pixel holds the primitive covering its centre, as pyrender's
+multisampling-off rasterisation into its 4x buffer did), read as one uint32 per pixel.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pyrender
+from OpenGL import GL
+from pyrender.constants import ProgramFlags, RenderFlags
+
+SAMPLES = 4
+
+
+class _Framebuffer:
+    """A colour (RGBA8) + depth (24 bit) framebuffer of one size, multisampled or not."""
+
+    def __init__(self, width: int, height: int, samples: int) -> None:
+        self.width, self.height = width, height
+        self.colour, self.depth = GL.glGenRenderbuffers(2)
+        for rb, fmt in ((self.colour, GL.GL_RGBA), (self.depth, GL.GL_DEPTH_COMPONENT24)):
+            GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
+            if samples:
+                GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, fmt, width, height)
+            else:
+                GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, fmt, width, height)
+        self.fb = GL.glGenFramebuffers(1)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self.fb)
+        GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, self.colour)
+        GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, self.depth)
+
+    def delete(self) -> None:
+        GL.glDeleteFramebuffers(1, [self.fb])
+        GL.glDeleteRenderbuffers(2, [self.colour, self.depth])
+
+
+def sorted_mesh_nodes(scene: pyrender.Scene, poses: dict) -> list:
+    """Mesh nodes in draw order: solid then transparent, each far to near from the camera, ties in insertion order."""
+    cam = poses[scene.main_camera_node][:3, 3]
+    nodes = sorted(scene.mesh_nodes, key=lambda n: getattr(n, "_draw_order", -1))
+    solid = [n for n in nodes if not n.mesh.is_transparent]
+    trans = [n for n in nodes if n.mesh.is_transparent]
+    far_first = lambda n: -np.linalg.norm(poses[n][:3, 3] - cam)  # noqa: E731
+    return sorted(solid, key=far_first) + sorted(trans, key=far_first)
+
+
+class Passes:
+    """The passes of one :class:`pyrender.OffscreenRenderer` (call with its context current)."""
+
+    def __init__(self, pr: pyrender.OffscreenRenderer) -> None:
+        self._inner = pr._renderer
+        self._fbs: dict[str, _Framebuffer] = {}
+        self._locations: dict[tuple[int, str], int] = {}
+        self._programs: dict[tuple, object] = {}
+        self._frame: tuple | None = None     # (draw order, poses, V, cam_pos) of the current frame
+
+    def delete(self) -> None:
+        """Free the framebuffers (context current)."""
+        for fb in self._fbs.values():
+            fb.delete()
+        self._fbs.clear()
+
+    def update(self, scene: pyrender.Scene) -> None:
+        """Upload meshes new to the scene, free removed ones, and take the node poses and draw order
+        for the passes that follow (once per frame, after the poses are set).
+
+        pyrender's ``_update_context`` without its texture and shadow-map bookkeeping (untextured
+        meshes, no shadows)."""
+        inner, meshes = self._inner, scene.meshes
+        for mesh in meshes - inner._meshes:
+            for p in mesh.primitives:
+                p._add_to_context()
+        for mesh in inner._meshes - meshes:
+            for p in mesh.primitives:
+                p.delete()
+        inner._meshes = meshes
+        cam_node = scene.main_camera_node
+        poses = {n: scene.get_pose(n) for n in scene.mesh_nodes}
+        poses[cam_node] = scene.get_pose(cam_node)
+        self._frame = (sorted_mesh_nodes(scene, poses), poses, np.linalg.inv(poses[cam_node]),
+                       poses[cam_node][:3, 3].astype(np.float32))
+
+    def _program(self, primitive, flags: int):
+        key = (flags, primitive.buf_flags, type(primitive.material), primitive.material.tex_flags, primitive.mode)
+        program = self._programs.get(key)
+        if program is None:
+            program = self._programs[key] = self._inner._get_primitive_program(primitive, flags,
+                                                                               ProgramFlags.USE_MATERIAL)
+        return program
+
+    def _fb(self, role: str, width: int, height: int, samples: int = 0) -> _Framebuffer:
+        """The framebuffer of ``role``, grown to hold ``width`` x ``height``: a pass draws into its lower-left
+        corner and reads that back (the pixels are the same as in a framebuffer of the pass's size), so
+        sub-window id passes of changing sizes share one framebuffer instead of reallocating."""
+        fb = self._fbs.get(role)
+        if fb is None or fb.width < width or fb.height < height:
+            if fb is not None:
+                fb.delete()
+                width, height = max(width, fb.width), max(height, fb.height)
+            fb = self._fbs[role] = _Framebuffer(width, height, samples)
+        return fb
+
+    def _set(self, program, name: str, setter, *args) -> None:
+        key = (program._program_id, name)
+        loc = self._locations.get(key)
+        if loc is None:
+            loc = self._locations[key] = GL.glGetUniformLocation(program._program_id, name)
+        if loc != -1:
+            setter(loc, *args)
+
+    def _draw(self, scene: pyrender.Scene, width: int, height: int, flags: int, seg_node_map: dict | None) -> None:
+        """pyrender's forward pass into the bound framebuffer: same clear, state, uniforms and draw order."""
+        seg = bool(flags & RenderFlags.SEG)
+        GL.glViewport(0, 0, width, height)
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthMask(GL.GL_TRUE)
+        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDepthRange(0.0, 1.0)
+        GL.glClearColor(*((0.0, 0.0, 0.0, 1.0) if seg else scene.bg_color))
+        GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+        (GL.glDisable if seg else GL.glEnable)(GL.GL_MULTISAMPLE)
+        GL.glEnable(GL.GL_CULL_FACE)
+        GL.glCullFace(GL.GL_BACK)
+        GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
+        GL.glDisable(GL.GL_PROGRAM_POINT_SIZE)
+        GL.glEnable(GL.GL_BLEND)
+        GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+
+        order, poses, V, cam_pos = self._frame
+        P = scene.main_camera_node.camera.get_projection_matrix(width=width, height=height)
+        program, material = None, None
+        for node in order:
+            mesh = node.mesh
+            if not mesh.is_visible or (seg and node not in seg_node_map):
+                continue
+            for primitive in mesh.primitives:
+                p = self._program(primitive, flags)
+                if p is not program:
+                    program, material = p, None
+                    program._bind()
+                    self._set(program, "V", GL.glUniformMatrix4fv, 1, GL.GL_TRUE, V)
+                    self._set(program, "P", GL.glUniformMatrix4fv, 1, GL.GL_TRUE, P)
+                    self._set(program, "cam_pos", GL.glUniform3fv, 1, cam_pos)
+                if seg:
+                    colour = (np.asanyarray(seg_node_map[node]) / 255.0).astype(np.float32)
+                    self._set(program, "color", GL.glUniform3fv, 1, colour)
+                elif primitive.material is not material:
+                    material = primitive.material
+                    self._material(program, material)
+                self._set(program, "M", GL.glUniformMatrix4fv, 1, GL.GL_TRUE, poses[node])
+                GL.glBindVertexArray(primitive._vaid)
+                n_instances = 1 if primitive.poses is None else len(primitive.poses)
+                if primitive.indices is not None:
+                    GL.glDrawElementsInstanced(primitive.mode, primitive.indices.size, GL.GL_UNSIGNED_INT,
+                                               None, n_instances)
+                else:
+                    GL.glDrawArraysInstanced(primitive.mode, 0, len(primitive.positions), n_instances)
+                GL.glBindVertexArray(0)
+        if program is not None:
+            GL.glUseProgram(0)
+
+    def _material(self, program, material) -> None:
+        """The material uniforms and blend/cull state pyrender sets for a textureless metallic-roughness material."""
+        if not isinstance(material, pyrender.MetallicRoughnessMaterial) or material.tex_flags or material.wireframe:
+            raise NotImplementedError("passes draw untextured, filled MetallicRoughnessMaterial meshes only")
+        f32 = lambda v: np.asarray(v, dtype=np.float32)  # noqa: E731
+        self._set(program, "material.emissive_factor", GL.glUniform3fv, 1, f32(material.emissiveFactor))
+        self._set(program, "material.base_color_factor", GL.glUniform4fv, 1, f32(material.baseColorFactor))
+        self._set(program, "material.metallic_factor", GL.glUniform1f, float(material.metallicFactor))
+        self._set(program, "material.roughness_factor", GL.glUniform1f, float(material.roughnessFactor))
+        if material.alphaMode == "BLEND":
+            GL.glBlendFunc(GL.GL_SRC_ALPHA, GL.GL_ONE_MINUS_SRC_ALPHA)
+        else:
+            GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+        if material.doubleSided:
+            GL.glDisable(GL.GL_CULL_FACE)
+        else:
+            GL.glEnable(GL.GL_CULL_FACE)
+            GL.glCullFace(GL.GL_BACK)
+
+    def colour(self, scene: pyrender.Scene, width: int, height: int,
+               want_depth: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        """(H, W, 3) uint8 BGR image, top row first; with ``want_depth`` also (H, W) float32 window depth 0..1."""
+        ms, out = self._fb("colour", width, height, SAMPLES), self._fb("resolved", width, height)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, ms.fb)
+        self._draw(scene, width, height, RenderFlags.FLAT, None)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, ms.fb)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, out.fb)
+        GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, out.fb)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        rgba = np.empty((height, width, 4), dtype=np.uint8)
+        GL.glReadPixels(0, 0, width, height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, rgba)
+        bgr = cv2.flip(cv2.cvtColor(rgba, cv2.COLOR_RGBA2BGR), 0)
+        if not want_depth:
+            return bgr, None
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, ms.fb)
+        GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_DEPTH_BUFFER_BIT, GL.GL_NEAREST)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, out.fb)
+        dbuf = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
+        return bgr, np.frombuffer(dbuf, dtype=np.float32).reshape(height, width)[::-1]
+
+    def ids(self, scene: pyrender.Scene, width: int, height: int, seg_node_map: dict) -> np.ndarray:
+        """(H, W) uint32 codes R | G << 8 | B << 16 of ``seg_node_map``'s colours (0: nothing), bottom row first."""
+        fb = self._fb("ids", width, height)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb.fb)
+        self._draw(scene, width, height, RenderFlags.SEG, seg_node_map)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb.fb)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        buf = GL.glReadPixels(0, 0, width, height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
+        return np.frombuffer(buf, dtype="<u4").reshape(height, width) & 0xFFFFFF
