@@ -45,6 +45,7 @@ class OracleDetector:
 
     uses_camera = True   # the registry passes the run's camera
     uses_seed = True     # a sweep passes the run's seed
+    uses_truth = True    # needs each frame's ground truth (set_truth): simulated runs only
 
     def __init__(self, min_visibility: float = 0.3, min_height_px: float = 4.0, jitter_px: float = 0.0,
                  miss_rate: float = 0.0, false_positives: float = 0.0, seed: int = 0,

@@ -293,6 +293,7 @@ BAD = {
     "unknown detector": (None, None, ["--detector", "nosuch"], "unknown detector 'nosuch'"),
     "unknown tracker": (None, None, ["--tracker", "nosuch"], "unknown tracker 'nosuch'"),
     "missing onnx": (None, None, ["--detector", "{tmp}/absent.onnx"], "model file not found"),
+    "truth-only detector": (None, None, ["--detector", "oracle"], "needs the simulation's ground truth"),
     "truncated video": ("{tmp}/truncated.mp4", None, [], "truncated or corrupt"),
 }
 

@@ -40,9 +40,11 @@ import numpy as np
 
 from monorarp.camera import CameraModel
 from monorarp.config_options import WARNING_THRESHOLD_S, default_pipeline_config
+from monorarp.detection import is_model_path
 from monorarp.errors import UserError
 from monorarp.io import JsonlWriter, atomic_output_dir, write_json_atomic
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
+from monorarp.registry import get_factory, uses
 from monorarp.types import Frame, FrameResult
 from monorarp.video.source import VideoInfo, VideoSource
 
@@ -161,6 +163,13 @@ def prediction_record(result: FrameResult, given_speed: float | None = None) -> 
 
 
 # ------------------------------------------------------------------------------ run
+def _refuse_truth_detector(name: str) -> None:
+    """A detector that reads the simulation's ground truth (``uses_truth``) has none on a video."""
+    if not is_model_path(name) and uses(get_factory("detector", name), "truth"):
+        raise UserError(f"--detector {name}: needs the simulation's ground truth, which a video does not have "
+                        "(it runs in monorarp run, sweep, bench and scorecard)")
+
+
 def run_video(input_spec: str | int | Path, camera: CameraModel | str | Path, out_dir: str | Path | None,
               options: VideoRunOptions = VideoRunOptions(), *, log: TextIO | None | str = "stderr",
               on_frame: Callable[[FrameResult, np.ndarray | None], None] | None = None) -> VideoRunSummary:
@@ -180,6 +189,7 @@ def run_video(input_spec: str | int | Path, camera: CameraModel | str | Path, ou
         raise UserError(f"--max-frames must be at least 1, got {options.max_frames}")
     if options.speed_mps is not None and not (np.isfinite(options.speed_mps) and options.speed_mps >= 0):
         raise UserError(f"--speed must be a non-negative speed in m/s, got {options.speed_mps}")
+    _refuse_truth_detector(options.pipeline.detector.name)
     with VideoSource(input_spec) as source:
         cam, scaled = camera_for(cam, source.info, log)
         pipeline = Pipeline.from_config(with_given_speed(options.pipeline, options.speed_mps), cam)
