@@ -19,8 +19,6 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
-from harness.scoring.evaluate import write_frame_csv, write_metrics
-from harness.scoring.records import write_csv
 from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.io import JsonlWriter, atomic_output_dir, write_json_atomic
@@ -92,6 +90,9 @@ class RunOutputs:
         """Write ``metrics.json``, ``per_object.csv`` and ``per_frame.csv``."""
         if self.dir is None:
             return
+        from harness.scoring.evaluate import write_frame_csv, write_metrics   # here: the names above stay cheap
+        from harness.scoring.records import write_csv
+
         write_metrics(metrics, self.dir / METRICS_NAME)
         write_csv(records, self.dir / PER_OBJECT_NAME)
         write_frame_csv(frame_rows, self.dir / PER_FRAME_NAME)

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
 from harness.scenario import Scenario, load_scenario
 from harness.scoring.evaluate import EvalConfig, evaluate, state_metrics
 from harness.scoring.records import ObjectRecord
@@ -41,9 +42,6 @@ from monorarp.types import Detection, Frame, FrameResult
 if TYPE_CHECKING:
     from harness.frame_cache import FrameCache
 
-DEFAULT_TRACKERS = ("particle", "kcf", "csrt", "mosse", "medianflow", "sort", "bytetrack")
-DEFAULT_SCENARIOS = ("scenarios/highway_cruise.yaml", "scenarios/cut_in.yaml")
-DEFAULT_FRAMES = 90
 JSON_NAME, MD_NAME = "trackers.json", "trackers.md"
 OUTPUT_NAMES = (JSON_NAME, MD_NAME)
 #: The paper's Table III (s per frame): KCF alone; FasterRCNN detector + particle tracker.

@@ -20,7 +20,7 @@ def _split(values: list[str] | None) -> list[str]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from harness.bench.trackers import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
+    from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
 
     p = sub.add_parser("bench", help="benchmark component alternatives on identical frames",
                        description="Benchmark component alternatives on identical simulated frames.")
@@ -46,8 +46,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_trackers(args: argparse.Namespace) -> int:
-    from harness.bench.trackers import (DEFAULT_SCENARIOS, DEFAULT_TRACKERS, BenchConfig, run_bench, stderr_log,
-                                        table_iii)
+    from harness.bench.defaults import DEFAULT_SCENARIOS, DEFAULT_TRACKERS
+    from harness.bench.trackers import BenchConfig, run_bench, stderr_log, table_iii
 
     trackers = _split(args.trackers) if args.trackers is not None else list(DEFAULT_TRACKERS)
     scenarios = _split(args.scenarios) if args.scenarios is not None else list(DEFAULT_SCENARIOS)
