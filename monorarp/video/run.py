@@ -189,9 +189,9 @@ def run_video(input_spec: str | int | Path, camera: CameraModel | str | Path, ou
         raise UserError(f"--max-frames must be at least 1, got {options.max_frames}")
     if options.speed_mps is not None and not (np.isfinite(options.speed_mps) and options.speed_mps >= 0):
         raise UserError(f"--speed must be a non-negative speed in m/s, got {options.speed_mps}")
-    _refuse_truth_detector(options.pipeline.detector.name)
     with VideoSource(input_spec) as source:
         cam, scaled = camera_for(cam, source.info, log)
+        _refuse_truth_detector(options.pipeline.detector.name)   # after the input's own errors, as names are
         pipeline = Pipeline.from_config(with_given_speed(options.pipeline, options.speed_mps), cam)
         if out_dir is None:
             return _loop(source, pipeline, cam, scaled, options, None, on_frame)
