@@ -17,7 +17,6 @@ see docs/road_profile.md); relative errors divide by ``d_long``; ``bias`` is the
 
 from __future__ import annotations
 
-import csv
 import json
 import sys
 from collections import defaultdict
@@ -25,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-Z90 = 1.6448536269514722
+from harness.scoring.algo import Z90
+from harness.scoring.records import read_csv
 
 
 def _rows(run: Path) -> np.ndarray:
@@ -39,14 +39,9 @@ def _rows(run: Path) -> np.ndarray:
             rec = json.loads(line)
             ego_x[rec["frame"]] = rec["ego"]["x"]
     x0 = ego_x[0]
-    out = []
-    with open(run / "per_object.csv", newline="") as f:
-        for r in csv.DictReader(f):
-            if r["matched"] == "1" and r["counted"] == "1" and r["d_y_est"] and r["d_long_gt"]:
-                d = float(r["d_long_gt"])
-                if 0 <= d < 80:
-                    beyond = d > end_ahead - (ego_x[int(r["frame"])] - x0)
-                    out.append((d, float(r["d_y_est"]), float(r["d_y_std"]) if r["d_y_std"] else np.nan, beyond))
+    out = [(r.d_long_gt, r.d_y_est, r.d_y_std, r.d_long_gt > end_ahead - (ego_x[r.frame] - x0))
+           for r in read_csv(run / "per_object.csv")
+           if r.matched and r.counted and np.isfinite(r.d_y_est) and 0 <= r.d_long_gt < 80]
     return np.array(out, dtype=float).reshape(-1, 4)
 
 

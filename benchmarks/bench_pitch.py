@@ -14,7 +14,6 @@ Columns: median |d_y - d_long| over 5-40 m (m) and its ratio to the same variant
 
 from __future__ import annotations
 
-import csv
 import json
 import re
 import sys
@@ -23,19 +22,16 @@ from pathlib import Path
 
 import numpy as np
 
-Z90 = 1.6448536269514722
+from harness.scoring.algo import Z90
+from harness.scoring.records import read_csv
+
 _AMP = re.compile(r"pitch_amplitude_deg=([0-9.]+)")
 
 
 def _rows(run: Path) -> np.ndarray:
     """(N, 3) d_long, d_y_est, d_y_std of the scored object-frames of one run."""
-    out = []
-    with open(run / "per_object.csv", newline="") as f:
-        for r in csv.DictReader(f):
-            if r["matched"] == "1" and r["counted"] == "1" and r["d_y_est"] and r["d_long_gt"]:
-                d = float(r["d_long_gt"])
-                if 0 <= d < 80:
-                    out.append((d, float(r["d_y_est"]), float(r["d_y_std"]) if r["d_y_std"] else np.nan))
+    out = [(r.d_long_gt, r.d_y_est, r.d_y_std) for r in read_csv(run / "per_object.csv")
+           if r.matched and r.counted and np.isfinite(r.d_y_est) and 0 <= r.d_long_gt < 80]
     return np.array(out).reshape(-1, 3)
 
 
