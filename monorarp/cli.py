@@ -17,7 +17,7 @@ import importlib.util
 import os
 import re
 import sys
-from importlib.metadata import PackageNotFoundError, distribution, entry_points, packages_distributions, requires
+from importlib.metadata import PackageNotFoundError, distribution, entry_points, requires
 
 from monorarp import __version__
 from monorarp.errors import UserError
@@ -31,6 +31,15 @@ def _missing_dependency(error: ModuleNotFoundError) -> str | None:
     return name if name and name not in ("monorarp", "harness") else None
 
 
+def _top_modules(dist) -> set[str]:
+    """Top-level import names a distribution installs (``top_level.txt``, else its file list)."""
+    listed = (dist.read_text("top_level.txt") or "").split()
+    if listed:
+        return set(listed)
+    parts = {f.parts[0].removesuffix(".py") for f in dist.files or () if f.parts}
+    return {p for p in parts if p.isidentifier() and not p.startswith("__")}
+
+
 def missing_harness_module() -> str | None:
     """The first distribution (not installed) or module (not importable) of the ``harness`` extra,
     None when all are there or this package's metadata is unavailable (a source tree on sys.path)."""
@@ -38,21 +47,20 @@ def missing_harness_module() -> str | None:
         reqs = requires("monorarp") or []
     except PackageNotFoundError:
         return None
-    dists = [re.match(r"[A-Za-z0-9._-]+", r).group(0) for r in reqs if re.search(r"extra\s*==\s*.harness.", r)]
-    modules = packages_distributions()
-    for dist in dists:
+    for req in reqs:
+        if not re.search(r"extra\s*==\s*.harness.", req):
+            continue
+        name = re.match(r"[A-Za-z0-9._-]+", req).group(0)
         try:
-            distribution(dist)
+            dist = distribution(name)
         except PackageNotFoundError:
-            return dist
-        norm = re.sub(r"[-_.]+", "-", dist).lower()
-        for module, owners in modules.items():
-            if norm in {re.sub(r"[-_.]+", "-", o).lower() for o in owners} and module.isidentifier():
-                try:
-                    if importlib.util.find_spec(module) is None:
-                        return module
-                except (ImportError, ValueError):
+            return name
+        for module in sorted(_top_modules(dist)):
+            try:
+                if importlib.util.find_spec(module) is None:
                     return module
+            except (ImportError, ValueError):
+                return module
     return None
 
 
