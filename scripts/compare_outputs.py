@@ -106,7 +106,16 @@ def compare(ref: Path, new: Path) -> int:
     return bad
 
 
+def main(argv: list[str]) -> int:
+    if len(argv) != 2:
+        print("usage: python scripts/compare_outputs.py REF_DIR NEW_DIR", file=sys.stderr)
+        return 2
+    for d in argv:
+        if not Path(d).is_dir() or not any(Path(d).iterdir()):
+            print(f"compare_outputs: {d}: not a snapshot directory (missing or empty)", file=sys.stderr)
+            return 2
+    return 1 if compare(Path(argv[0]), Path(argv[1])) else 0
+
+
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
-        sys.exit(__doc__)
-    sys.exit(1 if compare(Path(sys.argv[1]), Path(sys.argv[2])) else 0)
+    sys.exit(main(sys.argv[1:]))

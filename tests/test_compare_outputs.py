@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from compare_outputs import compare  # noqa: E402
+from compare_outputs import compare, main  # noqa: E402
 
 
 def _tree(root: Path) -> Path:
@@ -46,3 +46,14 @@ def test_every_kind_of_change_is_found(tmp_path, capsys):
         change(new / name)
         assert compare(ref, new) == 1, name
         assert name.split("/")[-1] in capsys.readouterr().out
+
+
+def test_missing_or_empty_snapshot_is_refused_not_passed(tmp_path, capsys):
+    ref = _tree(tmp_path / "a")
+    (tmp_path / "empty").mkdir()
+    assert main([str(ref), str(tmp_path / "nope")]) == 2
+    assert main([str(tmp_path / "empty"), str(ref)]) == 2
+    assert main([str(ref)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 3 and "nope" in err[0] and "empty" in err[1] and err[2].startswith("usage:")
+    assert main([str(ref), str(ref)]) == 0
