@@ -16,50 +16,11 @@ from dataclasses import replace
 import numpy as np
 
 from monorarp.camera import CameraError, CameraModel
+from monorarp.expansion import ExpansionFilter
+from monorarp.kalman import kf_predict, kf_update, motion_model
 from monorarp.state_geometry import (BORDER_TOL_PX, border_flags, box_distance, contact_line_cut,
                                      lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms)
 from monorarp.types import HorizonReading, ObjectState, Track
-
-
-# ---------------------------------------------------------------------------- filtering
-def motion_model(kind: str, dt: np.ndarray, noise_std: float) -> tuple[np.ndarray, np.ndarray]:
-    """Transition ``F`` and process noise ``Q``, each (M, n, n), for per-item intervals ``dt`` (s).
-
-    ``"cv"``: constant velocity, state (p, v), white acceleration of std ``noise_std`` (m/s^2).
-    ``"ca"``: constant acceleration, state (p, v, a), white jerk of std ``noise_std`` (m/s^3).
-    """
-    dt = np.asarray(dt, dtype=float)
-    one, zero = np.ones_like(dt), np.zeros_like(dt)
-    if kind == "cv":
-        F = np.stack([np.stack([one, dt], -1), np.stack([zero, one], -1)], -2)
-        G = np.stack([dt * dt / 2, dt], -1)
-    else:
-        F = np.stack([np.stack([one, dt, dt * dt / 2], -1), np.stack([zero, one, dt], -1),
-                      np.stack([zero, zero, one], -1)], -2)
-        G = np.stack([dt ** 3 / 6, dt * dt / 2, dt], -1)
-    return F, G[..., :, None] * G[..., None, :] * noise_std ** 2
-
-
-def kf_predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Batched prediction: x (..., n), P (..., n, n)."""
-    return np.einsum("...ij,...j->...i", F, x), F @ P @ np.swapaxes(F, -1, -2) + Q
-
-
-def kf_update(x: np.ndarray, P: np.ndarray, z: np.ndarray, r: np.ndarray,
-              h: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Batched update with a scalar measurement ``z = h . x + noise`` (...) of variance ``r`` (...).
-
-    ``h`` (..., n): the measurement row; None: ``[1, 0, ...]`` (the position).
-    """
-    if h is None:
-        h = np.zeros(x.shape)
-        h[..., 0] = 1.0
-    ph = np.einsum("...ij,...j->...i", P, h)
-    s = np.einsum("...i,...i->...", h, ph) + r
-    k = ph / s[..., None]
-    x = x + k * (z - np.einsum("...i,...i->...", h, x))[..., None]
-    P = P - k[..., :, None] * ph[..., None, :]
-    return x, P
 
 
 class StateEstimator:
@@ -100,6 +61,10 @@ class StateEstimator:
             new sighting: a jump of that size is the tracker's box moving to another vehicle (or to
             part of one), not motion, and absorbed by the filter it reads as tens of m/s of closing
             speed that a warning would trust (``inf``: never).
+        max_inward_offset_m: the most (m) a learnt near-edge offset may move a vehicle towards the
+            centre line (:meth:`_inward_clipped`; None: no limit).
+        expansion_process_std: process noise (1/s^2) of the per-track expansion-rate filter
+            (:mod:`monorarp.expansion`), output as ``ObjectState.expansion_rate``.
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -114,7 +79,8 @@ class StateEstimator:
                  edge_std_px: float = 0.9, border_edge_std_px: float = 2.7,
                  lateral_pixel_std: float | None = None, robust_sigmas: float | None = None,
                  bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
-                 bias_tau_s: float = 1.0, offset_learn_margin_px: float | None = None) -> None:
+                 bias_tau_s: float = 1.0, offset_learn_margin_px: float | None = None,
+                 max_inward_offset_m: float | None = 0.3, expansion_process_std: float = 1.0) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -132,6 +98,10 @@ class StateEstimator:
         if offset_learn_margin_px is not None and not (np.isfinite(offset_learn_margin_px) and offset_learn_margin_px >= 0):
             raise ValueError(f"offset_learn_margin_px must be >= 0 or None, got {offset_learn_margin_px}")
         self.offset_learn_margin_px = offset_learn_margin_px
+        if max_inward_offset_m is not None and not (np.isfinite(max_inward_offset_m) and max_inward_offset_m >= 0):
+            raise ValueError(f"max_inward_offset_m must be >= 0 or None, got {max_inward_offset_m}")
+        self.max_inward_offset_m = None if max_inward_offset_m is None else float(max_inward_offset_m)
+        self._expansion = ExpansionFilter(pixel_std=max(self.pixel_std, 1e-3), process_std=expansion_process_std)
         if not reinit_sigmas > 0:
             raise ValueError(f"reinit_sigmas must be > 0, got {reinit_sigmas}")
         if robust_sigmas is not None and not robust_sigmas > 0:
@@ -170,6 +140,7 @@ class StateEstimator:
         self._coast: dict[int, int] = {}
         self._near_offset: dict[int, float] = {}   # per track: far-edge minus near-edge lateral reading (m)
         self._born: dict[int, float] = {}          # per track: frame time its filter (re)started (s)
+        self._expansion.reset()
 
     def measure(self, boxes: np.ndarray) -> np.ndarray:
         """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` (m) with this estimator's geometry parameters."""
@@ -206,10 +177,24 @@ class StateEstimator:
                 old = self._near_offset.get(i)
                 self._near_offset[i] = offset[j] if old is None else old + 0.3 * (offset[j] - old)
             elif uses_near[j] and i in self._near_offset:
-                terms[j, 2] += self._near_offset[i]
+                terms[j, 2] += self._inward_clipped(self._near_offset[i], right[j])
         gone = contact_line_cut(self.camera, boxes, lateral_from_terms(terms, d_y), d_y, self.vehicle_width_m,
                                 self.contact_offset_m, self.border_tol_px)
         return np.where(gone, np.nan, d_y), terms
+
+    def _inward_clipped(self, offset: float, right: bool) -> float:
+        """The learnt near-edge offset (m), moving the vehicle towards the centre line by at most
+        ``max_inward_offset_m``.
+
+        The near-edge model (assumed length 4.5 m, width 1.8 m) reads a longer or wider vehicle too
+        far in, which the offset corrects outwards (a truck: 1 m or more); only a vehicle shorter
+        and narrower than any car could need more than ~0.3 m inwards. A larger inward offset was
+        learnt from a detector box that stopped short of the border while its vehicle was still
+        partly out of view: applied, it put a car in the next lane 2-3 m inside the ego's corridor.
+        """
+        if self.max_inward_offset_m is None:
+            return offset
+        return max(offset, -self.max_inward_offset_m) if right else min(offset, self.max_inward_offset_m)
 
     @property
     def near_limit_m(self) -> float:
@@ -327,14 +312,18 @@ class StateEstimator:
         if self.velocity == "kalman":
             cut_bottom = border_flags(self.camera, boxes, self.border_tol_px)[:, 2]
             out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom)
+            cut_top = boxes[:, 1] <= -0.5 + (self.border_tol_px or 0.0)
+            rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~cut_bottom & ~cut_top, t)
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
             std[:, 1] = self.distance_std(out[:, 1], std[:, 1], horizon_std_px, side_cut)
             return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac),
-                                     age_s=float(t - self._born[tid]))
-                    for tid, row, sd, ac, good in zip(ids, out, std, acc if acc is not None else [None] * len(ids), ok)
+                                     age_s=float(t - self._born[tid]), expansion_rate=_finite_or_none(er),
+                                     expansion_rate_std=_finite_or_none(er_std))
+                    for tid, row, sd, ac, good, er, er_std in zip(ids, out, std, acc if acc is not None else [None] * len(ids),
+                                                                   ok, rate, rate_std)
                     if good}
         out = self._difference(ids, d_y, terms, known, ok, t)
         return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}
@@ -439,3 +428,7 @@ class StateEstimator:
         std = np.sqrt(np.maximum(np.concatenate([P[:, :, 0, 0], P[:, :, 1, 1]], axis=1), 0.0))
         acc = None if n < 3 else np.stack([x[:, 1, 2], np.sqrt(np.maximum(P[:, 1, 2, 2], 0.0))], axis=1)
         return np.concatenate([x[:, :, 0], x[:, :, 1]], axis=1), std, acc
+
+
+def _finite_or_none(v: float) -> float | None:
+    return float(v) if np.isfinite(v) else None

@@ -49,7 +49,8 @@ class ForwardCollisionWarning:
                  corridor_margin_m: float = 0.0, min_lateral_age_s: float = 0.0, other_width_m: float = 1.8, other_length_m: float = 4.5,
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
-                 distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = 6.0) -> None:
+                 distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = 6.0,
+                 looming_sigmas: float | None = None, looming_factor: float = 2.5) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):
@@ -64,6 +65,12 @@ class ForwardCollisionWarning:
         if not np.isfinite(distance_sigmas):
             raise ValueError(f"distance_sigmas must be finite, got {distance_sigmas}")
         self.distance_sigmas = float(distance_sigmas)
+        if looming_sigmas is not None and not (np.isfinite(looming_sigmas) and looming_sigmas >= 0):
+            raise ValueError(f"looming_sigmas must be >= 0 or None, got {looming_sigmas}")
+        if not (np.isfinite(looming_factor) and looming_factor > 0):
+            raise ValueError(f"looming_factor must be positive, got {looming_factor}")
+        self.looming_sigmas = None if looming_sigmas is None else float(looming_sigmas)
+        self.looming_factor = float(looming_factor)
         if max_raw_lateral_speed_mps is not None and not (np.isfinite(max_raw_lateral_speed_mps)
                                                           and max_raw_lateral_speed_mps > 0):
             raise ValueError(f"max_raw_lateral_speed_mps must be > 0 or None, got {max_raw_lateral_speed_mps}")
@@ -115,6 +122,10 @@ class ForwardCollisionWarning:
         if self.max_raw_lateral_speed_mps is not None:
             raw_v_x = np.array([o.v_x for o in s], dtype=float)
             plausible &= ~(np.abs(raw_v_x) > self.max_raw_lateral_speed_mps)
+        if self.looming_sigmas is not None:
+            rate = np.array([np.inf if o.expansion_rate is None else o.expansion_rate for o in s], dtype=float)
+            rate_std = np.array([0.0 if o.expansion_rate_std is None else o.expansion_rate_std for o in s])
+            plausible &= rate + self.looming_sigmas * rate_std >= 1.0 / (self.looming_factor * self.ttc_threshold_s)
         a_y = None
         if self.accel_sigmas is not None:
             a = np.array([0.0 if o.a_y is None else o.a_y for o in s], dtype=float)

@@ -8,7 +8,7 @@ the state estimator and the warning stage (milliseconds per run) and is scored w
 scorecard's own rules: trials passed and false-alarm episodes in the nominal runs.
 
     python scripts/tune_warning.py [--protocol scenarios/fcw/tuning.yaml] [--cache DIR]
-        [--grid '{"state": {"pixel_std": [0.5, 1.0]}, "warning": {"lateral_sigmas": [2, 3]}}']
+        [--workers N] [--grid '{"state": {"pixel_std": [0.5, 1.0]}, "warning": {"lateral_sigmas": [2, 3]}}']
 
 Prints one line per parameter set. Needs the harness (renders the runs on first use).
 """
@@ -19,6 +19,7 @@ import argparse
 import hashlib
 import itertools
 import json
+import multiprocessing
 import pickle
 from pathlib import Path
 
@@ -83,11 +84,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--protocol", type=Path, default=Path("scenarios/fcw/tuning.yaml"))
     ap.add_argument("--cache", type=Path, default=Path(".cache/tune_warning"))
+    ap.add_argument("--workers", type=int, default=2, help="processes that compute missing tracks")
     ap.add_argument("--why", action="store_true", help="also print each false alarm's one-line cause")
     ap.add_argument("--grid", default='{"state": {}, "warning": {}}', help="JSON: stage -> parameter -> values")
     args = ap.parse_args()
     trials, tasks = build_tasks(ScorecardOptions(protocol_files=[args.protocol], progress=False))
-    runs = [(trial, cached_tracks(task, args.cache)) for trial, task in zip(trials, tasks)]
+    with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
+        cached = pool.starmap(cached_tracks, [(task, args.cache) for task in tasks], chunksize=1)
+    runs = list(zip(trials, cached))
     for state_kw, warning_kw in grid_points(json.loads(args.grid)):
         passed, n_tests, fa, hours, ttcs, why = 0, 0, 0, 0.0, [], []
         for trial, data in runs:

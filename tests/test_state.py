@@ -418,7 +418,7 @@ def test_bias_state_makes_the_velocity_sigma_honest_under_correlated_edge_errors
 
 
 def test_kf_update_with_a_measurement_row_matches_the_matrix_formula():
-    from monorarp.state import kf_update
+    from monorarp.kalman import kf_update
     rng = np.random.default_rng(3)
     A = rng.normal(size=(4, 4))
     P = A @ A.T + np.eye(4)
@@ -462,10 +462,11 @@ def test_bad_noise_parameters_are_refused(level_cam, kw):
         StateEstimator(level_cam, **kw)
 
 
-def test_offset_learn_margin_keeps_a_short_box_from_teaching_the_near_edge_offset():
+def test_a_short_box_cannot_move_the_near_edge_reading_inwards():
     """A next-lane car entering from the right: the detector's box stops 12 px short of the border
-    (its far edge is no edge), then reaches it. Learnt from the short box, the near-edge reading is
-    shifted by ~-2.4 m for good (a false in-path car); with a 16 px margin it is not learnt."""
+    (its far edge is no edge), then reaches it. Learnt from the short box without a limit, the
+    near-edge reading is shifted by ~-2.4 m for good (a false in-path car); with a 16 px margin it
+    is not learnt; by default the inward shift is clipped to 0.3 m."""
     cam = CameraModel.from_fov(640, 360, 70.0, 1.3, pitch_rad=math.radians(2.0))
     short, cut = (500.0, 200.0, 627.0, 276.0), (441.1, 200.0, 639.5, 245.7)
 
@@ -479,4 +480,5 @@ def test_offset_learn_margin_keeps_a_short_box_from_teaching_the_near_edge_offse
     fresh = StateEstimator(cam).update([Track(1, cut)], 0.0)[1].d_x        # the near-edge reading alone
     assert fresh == pytest.approx(3.77, abs=0.05)
     assert lateral(offset_learn_margin_px=16) == pytest.approx(fresh, abs=0.3)
-    assert lateral() < fresh - 1.0
+    assert lateral(max_inward_offset_m=None) < fresh - 1.0
+    assert lateral() == pytest.approx(fresh - 0.3, abs=1e-6)
