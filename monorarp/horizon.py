@@ -170,8 +170,8 @@ class LaneWidthRanging:
         from monorarp.ego_speed.geometry import to_gray
 
         lines = [(ln.a, ln.b) for ln in self.finder.update(image)]
-        rows, s, _ = march_rows(self.camera, to_gray(image), lines, self.v_start, self.v_ref, self.v_stop,
-                                self.marking_width_m, self.min_contrast)
+        rows, s, _, open_end = march_rows(self.camera, to_gray(image), lines, self.v_start, self.v_ref,
+                                          self.v_stop, self.marking_width_m, self.min_contrast)
         v, dist, sd = smooth_profile(self.camera, rows, s)
         return GroundReading(self.camera.horizon_row, 0.0, "calibrated",
-                             GroundProfile(v, dist, sd, self.fallback_grade_std))
+                             GroundProfile(v, dist, sd, self.fallback_grade_std, open_end))

@@ -194,7 +194,10 @@ class StateEstimator:
         """
         ground = None
         if self._profile is not None:
-            ground, self._ground_std = contact_ground(self.camera, self._profile, boxes[:, 3], self.edge_std_px)
+            ground, self._ground_std = contact_ground(self.camera, self._profile, boxes[:, 3], self.edge_std_px,
+                                                      boxes=boxes, width_m=self.vehicle_width_m,
+                                                      length_m=self.vehicle_length_m,
+                                                      contact_offset_m=self.contact_offset_m)
         d_y = box_distance(self.camera, boxes, self.contact_offset_m, self.ground_clearance_m, self.border_tol_px,
                            ground)
         terms = lateral_terms(self.camera, boxes, self.vehicle_width_m, self.vehicle_length_m,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from monorarp.camera import CameraModel
-from monorarp.ground_profile import GroundProfile, contact_ground, ridge_peak
+from monorarp.ground_profile import GroundProfile, contact_ground, ridge_peak, width_distance
 from monorarp.horizon import LaneWidthRanging
 from monorarp.state import StateEstimator
 from monorarp.types import Track
@@ -120,3 +120,50 @@ def test_contact_ground_outside_the_profile():
     assert y[2] == flat[2] and add[2] == 0.0
     y0, add0 = contact_ground(CAM, None, rows, 0.9)
     assert np.array_equal(y0, flat) and np.all(add0 == 0.0)
+
+
+def test_a_box_where_the_road_vanishes_beyond_a_crest_is_stated_wide():
+    """A 4 % descent 40 m ahead hides the road beyond (the camera's 1.3 m is below the line over the
+    crest): a car 65 m ahead shows only its top, its box bottom on the crest. The lines are lost there,
+    the profile says so, and the interval reaches the car."""
+    reading = LaneWidthRanging(CAM).update(synthetic_frame(-0.04), 0.0)
+    assert reading.profile.open_end
+    crest = float(reading.profile.rows[0])                     # the farthest road row seen
+    track = Track(1, (CAM.cx - 7, crest - 6, CAM.cx + 7, crest + 0.5))
+    state = StateEstimator(CAM).update([track], 0.0, horizon=reading)[1]
+    plain = StateEstimator(CAM).update([track], 0.0)[1]
+    assert plain.d_y < 40.0                                    # equation 3 reads the crest
+    assert abs(65.0 - plain.d_y) > 1.645 * plain.d_y_std       # and its interval misses the car
+    # the box's 14 px of width (a 2 m car at 65 m) read with the assumed 1.8 m: 457 x 1.8 / 14 = 58.8 m
+    assert state.d_y == pytest.approx(CAM.fx * 1.8 / 14.0, rel=0.01)
+    assert abs(65.0 - state.d_y) <= 1.645 * state.d_y_std
+    # without the boxes the same reading only widens the crest's distance
+    y, add = contact_ground(CAM, reading.profile, np.array([crest + 0.5]), 0.9)
+    assert y[0] < 41.0 and 65.0 - y[0] <= 1.645 * add[0]
+
+
+@pytest.mark.parametrize("x_centre", [0.3, 4.0, -4.0, 8.0])
+def test_width_distance_of_a_box_drawn_by_cv2_style_projection(x_centre):
+    """A 1.8 x 4.5 m box-shaped vehicle 60 m ahead: its image box from the projected corners (at the
+    height of the camera, where a level camera sees every corner's extreme column) gives 60 m back."""
+    W, L, d = 1.8, 4.5, 60.0
+    xs, ys = (x_centre - W / 2, x_centre + W / 2), (d, d + L)
+    pts = np.array([[x, y, 0.0] for x in xs for y in ys])
+    u = CAM.project_ego(pts)[:, 0]
+    box = np.array([[u.min(), 170.0, u.max(), 180.0]])
+    assert width_distance(CAM, box, W, L)[0] == pytest.approx(d, rel=1e-9)
+
+
+def test_width_bears_out_or_overrides_a_reading_where_the_road_is_unseen():
+    """Beyond the profile's far end: a box as wide as a 1.8 m car at the flat reading keeps it with
+    only the two readings' difference added (no grade); one half as wide stands twice as far."""
+    p = GroundProfile(np.array([200.0, 210.0, 220.0]), np.array([30.0, 22.0, 15.0]), np.array([0.5, 0.3, 0.2]))
+    row = 195.0                                                # the flat ground's 38 m
+    flat = CAM.ground_point_from_pixel(np.array([CAM.cx]), np.array([row]))[0, 1]
+    w_px = CAM.fx * 1.8 / (flat - 0.95)                        # the rear face at the contact line's distance
+    same = np.array([[CAM.cx - w_px / 2, row - 20, CAM.cx + w_px / 2, row]])
+    half = np.array([[CAM.cx - w_px / 4, row - 10, CAM.cx + w_px / 4, row]])
+    y, add = contact_ground(CAM, p, np.array([row, row]), 0.9, boxes=np.vstack([same, half]))
+    assert y[0] == flat and add[0] == pytest.approx(0.0, abs=1e-9)
+    assert y[1] == pytest.approx(2 * (flat - 0.95) + 0.95)
+    assert add[1] == pytest.approx(y[1] * np.hypot(0.15 / 1.8, 1.0 / (w_px / 2)))
