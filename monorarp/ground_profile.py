@@ -69,9 +69,8 @@ class GroundReading(HorizonReading):
 
 def ray_y(camera: CameraModel, v: np.ndarray) -> np.ndarray:
     """Ego ``y`` of the camera-frame vector ``(0, (v - c_y) / f_y, 1)`` for rows ``v`` (its depth is 1)."""
-    v = np.asarray(v, dtype=float)
-    rays = np.stack([np.zeros_like(v), (v - camera.cy) / camera.fy, np.ones_like(v)], axis=-1)
-    return camera.cam_to_ego(rays)[..., 1]
+    R = camera.R_cam_from_ego                         # ego = cam @ R (CameraModel.cam_to_ego)
+    return (np.asarray(v, dtype=float) - camera.cy) / camera.fy * R[1, 1] + R[2, 1]
 
 
 def ridge_peak(row: np.ndarray, u0: float, half_window: float, flank_px: float,
