@@ -38,5 +38,6 @@ BUILTINS: dict[str, dict[str, str]] = {
     "horizon": {
         "calibrated": "monorarp.horizon:CalibratedHorizon",
         "online": "monorarp.horizon:OnlineHorizon",
+        "lane_width": "monorarp.horizon:LaneWidthRanging",
     },
 }

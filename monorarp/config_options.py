@@ -96,7 +96,9 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
         p.add_argument("--horizon", default=CALIBRATED, metavar="NAME",
                        help=_RegistryHelp("horizon", "horizon row of equation 3 ({names}): the calibration's every "
                                           "frame, or this frame's lane-line vanishing point (online; for a camera "
-                                          f"that pitches on its mount; default: {CALIBRATED})"))
+                                          "that pitches on its mount), or the calibration's plus the road's distance "
+                                          "per row from the lane lines' spacing (lane_width; for roads that are not "
+                                          f"flat; default: {CALIBRATED})"))
 
 
 def _component(kind: str, option: str, name: str, kwargs: dict[str, Any] | None = None,

@@ -26,6 +26,7 @@ import math
 import numpy as np
 
 from monorarp.camera import CameraModel
+from monorarp.ground_profile import GroundProfile, GroundReading, march_rows, smooth_profile
 from monorarp.types import HorizonReading
 from monorarp.video.horizon import _angular_residual, _lines, lane_segments, vanishing_point
 
@@ -128,3 +129,49 @@ class OnlineHorizon:
         if self._last is not None and float(t) - self._last_t <= self.hold_s:
             return HorizonReading(self._last.row, max(self._last.std_px, self.fallback_std_px), "held")
         return HorizonReading(self.camera.horizon_row, self.fallback_std_px, "calibrated")
+
+
+class LaneWidthRanging:
+    """The calibrated horizon plus this frame's road distance per row from the lane lines' spacing.
+
+    The state estimator reads a box's distance from the :class:`~monorarp.ground_profile.GroundProfile`
+    where the road is not the flat ground (:func:`monorarp.ground_profile.contact_ground`). Lines: the
+    near road's (``LaneLineFinder`` between ``near_m`` and ``ref_far_m``, assumed flat, where each
+    line's offset is re-measured), followed from the row of ``start_m`` up to ``max_rise_deg`` above the calibrated horizon (a climb's far road lies
+    above it). ``fallback_grade_std``: the grade uncertainty (rise/run) of a box above the profile.
+    """
+
+    uses_camera = True   # the registry passes the run's camera
+
+    def __init__(self, camera: CameraModel, marking_width_m: float = 0.15, near_m: float = 6.0,
+                 ref_far_m: float = 25.0, start_m: float = 10.0, max_rise_deg: float = 3.0,
+                 min_contrast: float = 12.0, fallback_grade_std: float = 0.02, line_range_m: float = 8.0) -> None:
+        from monorarp.ego_speed.lane_lines import LaneLineFinder
+
+        for name, val in (("max_rise_deg", max_rise_deg), ("min_contrast", min_contrast),
+                          ("fallback_grade_std", fallback_grade_std)):
+            if not (math.isfinite(val) and val >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {val}")
+        if not 0 < near_m < ref_far_m:
+            raise ValueError(f"need 0 < near_m < ref_far_m, got {near_m}, {ref_far_m}")
+        self.camera = camera
+        self.finder = LaneLineFinder(camera, marking_width_m, y_near=near_m, y_far=ref_far_m, x_range_m=line_range_m)
+        self.marking_width_m = float(marking_width_m)
+        start, ref = (camera.project_ego(np.array([0.0, y, -camera.height_m]))[1] for y in (float(start_m), ref_far_m))
+        self.v_start, self.v_ref = min(float(start), camera.height - 1.0), float(ref)
+        self.v_stop = max(camera.horizon_row - pitch_std_px(camera, max_rise_deg), 0.0)
+        self.min_contrast = float(min_contrast)
+        self.fallback_grade_std = float(fallback_grade_std)
+
+    def reset(self) -> None:
+        self.finder.reset()
+
+    def update(self, image: np.ndarray, t: float) -> GroundReading:
+        from monorarp.ego_speed.geometry import to_gray
+
+        lines = [(ln.a, ln.b) for ln in self.finder.update(image)]
+        rows, s, _, open_end = march_rows(self.camera, to_gray(image), lines, self.v_start, self.v_ref,
+                                          self.v_stop, self.marking_width_m, self.min_contrast)
+        v, dist, sd = smooth_profile(self.camera, rows, s)
+        return GroundReading(self.camera.horizon_row, 0.0, "calibrated",
+                             GroundProfile(v, dist, sd, self.fallback_grade_std, open_end))

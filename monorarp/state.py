@@ -17,6 +17,7 @@ import numpy as np
 
 from monorarp.camera import CameraError, CameraModel
 from monorarp.expansion import ExpansionFilter
+from monorarp.ground_profile import contact_ground
 from monorarp.kalman import kf_predict, kf_update, motion_model
 from monorarp.state_geometry import (BORDER_TOL_PX, border_flags, box_distance, contact_line_cut,
                                      lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms)
@@ -126,6 +127,8 @@ class StateEstimator:
         self.edge_std_px, self.border_edge_std_px = float(edge_std_px), float(border_edge_std_px)
         self.grade_std = float(grade_std)
         self._extra_px_var = 0.0      # this frame's white horizon noise (px^2), added to the measurement's
+        self._profile = None          # this frame's measured road profile (a GroundReading's), None: flat ground
+        self._ground_std: np.ndarray | None = None   # per box, the profile's one-sigma added to d_y_std (m)
         n = 2 if motion == "cv" else 3
         self._prior_var = np.array([0.0, init_vel_std ** 2, init_acc_std ** 2][:n])
         self.forget_s = float(forget_s)
@@ -160,7 +163,14 @@ class StateEstimator:
         wrong offset, but also keeps a whole vehicle near the border from teaching the right one
         (tests/test_state.py: a 1.6 m/s lateral-velocity jump), so it is opt-in.
         """
-        d_y = box_distance(self.camera, boxes, self.contact_offset_m, self.ground_clearance_m, self.border_tol_px)
+        ground = None
+        if self._profile is not None:
+            ground, self._ground_std = contact_ground(self.camera, self._profile, boxes[:, 3], self.edge_std_px,
+                                                      boxes=boxes, width_m=self.vehicle_width_m,
+                                                      length_m=self.vehicle_length_m,
+                                                      contact_offset_m=self.contact_offset_m)
+        d_y = box_distance(self.camera, boxes, self.contact_offset_m, self.ground_clearance_m, self.border_tol_px,
+                           ground)
         terms = lateral_terms(self.camera, boxes, self.vehicle_width_m, self.vehicle_length_m,
                               self.ground_clearance_m, self.border_tol_px)
         near = near_edge_terms(self.camera, boxes, self.vehicle_width_m, self.vehicle_length_m,
@@ -273,7 +283,9 @@ class StateEstimator:
         ``horizon``: this frame's horizon reading (:mod:`monorarp.horizon`): equation 3 then uses a
         camera pitched to its row (the calibrated one when that row is impossible), the reading's
         ``std_px`` widens ``d_y_std``, and a reading measured this frame (``"vanishing_point"``, white
-        noise) also widens the filter's measurement noise. None: the calibrated horizon with
+        noise) also widens the filter's measurement noise; a reading with a measured road profile
+        (:class:`monorarp.ground_profile.GroundReading`) gives the bottom rows' ground distances and their
+        uncertainty (:func:`monorarp.ground_profile.contact_ground`). None: the calibrated horizon with
         ``horizon_std_px``.
         """
         if horizon is None:
@@ -286,9 +298,10 @@ class StateEstimator:
                 self.camera = nominal
             if horizon.source == "vanishing_point":
                 self._extra_px_var = float(horizon.std_px) ** 2
+            self._profile = getattr(horizon, "profile", None)
             return self._update(tracks, t, float(horizon.std_px))
         finally:
-            self.camera, self._extra_px_var = nominal, 0.0
+            self.camera, self._extra_px_var, self._profile, self._ground_std = nominal, 0.0, None, None
 
     def _update(self, tracks: Sequence[Track], t: float, horizon_std_px: float) -> dict[int, ObjectState]:
         t = float(t)
@@ -319,6 +332,8 @@ class StateEstimator:
             side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
             std[:, 1] = self.distance_std(out[:, 1], std[:, 1], horizon_std_px, side_cut)
+            if self._ground_std is not None:
+                std[:, 1] = np.hypot(std[:, 1], self._ground_std)
             return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac),
                                      age_s=float(t - self._born[tid]), expansion_rate=_finite_or_none(er),
                                      expansion_rate_std=_finite_or_none(er_std))

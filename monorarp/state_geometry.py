@@ -48,15 +48,19 @@ def border_flags(camera: CameraModel, boxes: np.ndarray, tol_px: float | None = 
 
 
 def box_distance(camera: CameraModel, boxes: np.ndarray, contact_offset_m: float = 0.95,
-                 ground_clearance_m: float = 0.17, border_tol_px: float | None = BORDER_TOL_PX) -> np.ndarray:
+                 ground_clearance_m: float = 0.17, border_tol_px: float | None = BORDER_TOL_PX,
+                 ground_y: np.ndarray | None = None) -> np.ndarray:
     """(M,) ``d_y`` (m) of each box's rear face from its bottom edge (equation 3 + contact-line correction).
 
     NaN for boxes not below the horizon and for boxes whose bottom edge touches the
-    image's bottom border (truncated: their real bottom edge is out of view).
+    image's bottom border (truncated: their real bottom edge is out of view). ``ground_y`` (M,):
+    the ground distance (m) of each bottom row from elsewhere (a measured road profile,
+    :func:`monorarp.ground_profile.contact_ground`); None: the flat ground's.
     """
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     v_b = b[:, 3]
-    y_g = camera.ground_point_from_pixel(np.full_like(v_b, camera.cx), v_b)[:, 1]   # ground distance of the ray
+    y_g = camera.ground_point_from_pixel(np.full_like(v_b, camera.cx), v_b)[:, 1] if ground_y is None \
+        else np.asarray(ground_y, dtype=float)   # ground distance of the ray
     d_y = np.maximum(y_g - contact_offset_m, y_g * (1.0 - ground_clearance_m / camera.height_m))
     return np.where(border_flags(camera, b, border_tol_px)[:, 2], np.nan, d_y)
 

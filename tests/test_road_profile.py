@@ -243,5 +243,5 @@ def test_shipped_hill_scenario_and_grade_sweep():
     assert all(v.distance_m >= seg.start_m + seg.transition_m for v in hill.vehicles if v.name != "right_near")
     exp = load_and_expand(root / "grade.yaml")
     grades = {t.scenario["road"]["profile"][0]["grade"] for t in exp.tasks}
-    assert grades == {-0.04, -0.02, 0.0, 0.02, 0.04} and len(exp.tasks) == 60
+    assert grades == {-0.04, -0.02, 0.0, 0.02, 0.04} and len(exp.tasks) == 90
     assert {t.pipeline["state"]["kwargs"].get("grade_std", 0.0) for t in exp.tasks} == {0.0, 0.01, 0.025}
