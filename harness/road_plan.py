@@ -120,13 +120,18 @@ class RoadPlan:
         th, d = self.theta(x), p - self.centre(x)
         return x, -d[..., 0] * np.sin(th) + d[..., 1] * np.cos(th)
 
+    def breakpoints(self) -> np.ndarray:
+        """Sorted ``x`` where the curvature stops being linear in ``x`` (each clothoid's and arc's ends)."""
+        return self.curved_x(math.inf)
+
     def curved_x(self, step_m: float) -> np.ndarray:
         """``x`` samples at most ``step_m`` apart over every curve, with its ends: a chord between
         them departs from the arc by at most ``step^2 / (8 R')`` at the radius ``R'`` of the line."""
         xs = []
         for x0, t, n in zip(self.starts, self.transitions, self.lengths):
             for a, b in ((x0, x0 + t), (x0 + t, x0 + t + n), (x0 + t + n, x0 + 2 * t + n)):
-                xs.append(np.linspace(a, b, max(1, int(math.ceil((b - a) / step_m))) + 1))
+                n = 1 if math.isinf(step_m) else max(1, int(math.ceil((b - a) / step_m)))
+                xs.append(np.linspace(a, b, n + 1))
         return np.unique(np.concatenate(xs))
 
     def min_radius(self) -> float:
@@ -137,16 +142,22 @@ class RoadPlan:
 def path_length(plan: RoadPlan, profile, x0, x1, y) -> np.ndarray:
     """Signed length (m) along the road from road ``x0`` to ``x1`` on the line at lateral offset ``y``
     (m): ``int sqrt((1 - kappa y)^2 + slope^2) dx``; closed form ``x1 - x0 - y (theta(x1) - theta(x0))``
-    without a vertical ``profile`` (:class:`~harness.road_profile.RoadProfile`), else Simpson's rule
-    on 800 panels."""
+    without a vertical ``profile`` (:class:`~harness.road_profile.RoadProfile`), else 32-point
+    Gauss-Legendre between consecutive breakpoints of the plan and the profile (the integrand is
+    smooth inside each piece, and no node sits on a breakpoint)."""
     x0, x1, y = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (x0, x1, y)))
     if profile is None:
         return x1 - x0 - y * (plan.theta(x1) - plan.theta(x0))
-    u = np.linspace(0.0, 1.0, 801)
-    xs = x0[..., None] + (x1 - x0)[..., None] * u
-    f = np.hypot(1 - plan.curvature(xs) * y[..., None], profile.slope(xs))
-    w = np.r_[1.0, np.tile([4.0, 2.0], 399), 4.0, 1.0]
-    return (x1 - x0) / 2400 * (f @ w)
+    knots = np.union1d(plan.breakpoints(), profile.breakpoints())
+    nodes, weights = np.polynomial.legendre.leggauss(32)
+    out = np.empty(x0.shape)
+    for i in np.ndindex(x0.shape):
+        lo, hi = sorted((float(x0[i]), float(x1[i])))
+        edges = np.r_[lo, knots[(knots > lo) & (knots < hi)], hi]
+        xs = edges[:-1, None] + np.diff(edges)[:, None] * (nodes + 1) / 2
+        f = np.hypot(1 - plan.curvature(xs) * y[i], profile.slope(xs))
+        out[i] = np.sum(np.diff(edges) / 2 * (f @ weights)) * (1 if x1[i] >= x0[i] else -1)
+    return out
 
 
 def _simpson(plan: RoadPlan, a: np.ndarray, b: np.ndarray) -> np.ndarray:
