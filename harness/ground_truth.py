@@ -13,7 +13,10 @@ height along the ego's up axis) to the middle of the rear face's ground edge: do
 
 On a curved road (``world.plan``) the same holds with the ego frame yawed with the ego's body;
 ``s_long`` is then measured along the road at the camera foot point's lateral offset and ``s_lat``
-is the rear face middle's lateral road offset minus the foot point's: docs/road_curves.md.
+is the rear face middle's lateral road offset minus the foot point's. ``ttc`` on a curved road is
+that of the unbent simulation (road-frame footprints and velocities: each vehicle keeps its speed
+along its lane), since a straight-ahead constant-velocity extrapolation in the ego frame would see
+the next lane's cars cross the ego's path: docs/road_curves.md.
 """
 
 from __future__ import annotations
@@ -24,7 +27,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from harness.render.geometry import ego_frame_world, road_vectors_to_ego, vehicle_corners_ego
+from harness.render.geometry import (ego_frame_world, road_vectors_to_ego, vehicle_corners_ego,
+                                     vehicles_footprints_ego)
 from harness.render.meshes import vehicle_height
 from harness.road_plan import path_length
 from harness.truth import CameraTruth, EgoTruth, FrameTruth, ObjectTruth
@@ -90,8 +94,12 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
     else:
         v_rel, s_long, s_lat = _road_motion(world, vehicles, camera, corners_ego)
     ex, ey = ego_extent(ego.length, ego.width, camera.forward_offset_m, camera.lateral_offset_m)
-    ttc = time_to_collision(foot[..., 0].min(1), foot[..., 0].max(1), foot[..., 1].min(1), foot[..., 1].max(1),
-                            v_rel[:, 0], v_rel[:, 1], ex, ey, horizon_s)
+    # on a curve, TTC is the unbent simulation's: constant velocities along the lanes, not straight ahead
+    ttc_foot, ttc_v = (foot, v_rel) if world.plan is None else (
+        vehicles_footprints_ego(vehicles, ego, camera),
+        road_vectors_to_ego(np.array([[v.vx - ego.vx, v.vy - ego.vy] for v in vehicles]), ego))
+    ttc = time_to_collision(ttc_foot[..., 0].min(1), ttc_foot[..., 0].max(1), ttc_foot[..., 1].min(1),
+                            ttc_foot[..., 1].max(1), ttc_v[:, 0], ttc_v[:, 1], ex, ey, horizon_s)
     objects = []
     for k, v in enumerate(vehicles):
         box, n_visible = visible[v.id]

@@ -170,6 +170,24 @@ def test_truth_on_a_known_circle_is_the_closed_form(sign):
     assert obj.s_long == pytest.approx(gap * rho / R, abs=0.05) and obj.d_long < obj.s_long - 0.1
 
 
+def test_truth_ttc_on_a_curve_follows_the_lanes():
+    """A slower lead 30 m ahead in the ego's lane of a 300 m left arc: it closes at 10 m/s along the
+    lane, so TTC = (30 - 2) / 10 s (2 m: the ego's front ahead of the camera), as on the straight
+    road, although extrapolated straight ahead in the ego frame it would drift clear to the left."""
+    s = _scenario([{"start_m": -100, "radius_m": 300.0, "direction": "left", "length_m": 300}])
+    camera = s.camera.model()
+    ego = _vehicle(0, EGO_START_X_M, 25.0, length=5.0, width=2.0)
+    lead = _vehicle(1, ego.x + camera.forward_offset_m + 30.0 + 2.3, 15.0)
+    mask = np.full((camera.height, camera.width), -1)
+    mask[200, 320] = 1
+    curved = frame_truth(WorldState(0, 0.0, ego, (lead,), plan=road_plan(s.road.curves, 0.5)), camera, mask,
+                         {1: 1.0}).objects[0]
+    assert curved.ttc == pytest.approx(2.8, abs=1e-9)
+    assert curved.d_lat < -1.2 and curved.v_lat < -1.2     # drifting left in the ego frame
+    straight = frame_truth(WorldState(0, 0.0, ego, (lead,)), camera, mask, {1: 1.0}).objects[0]
+    assert straight.ttc == curved.ttc
+
+
 def _rot_ego_to_cv(pitch: float) -> np.ndarray:
     level = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
     r_pitch, _ = cv2.Rodrigues(np.array([pitch, 0.0, 0.0]))
