@@ -13,7 +13,9 @@ height along the ego's up axis) to the middle of the rear face's ground edge: do
 
 On a curved road (``world.plan``) the same holds with the ego frame yawed with the ego's body;
 ``s_long`` is then measured along the road at the camera foot point's lateral offset and ``s_lat``
-is the rear face middle's lateral road offset minus the foot point's. ``ttc`` on a curved road is
+is the rear face middle's lateral road offset minus the foot point's; ``ego.speed`` is the ego's
+horizontal speed in the bent world (``1 - kappa y`` times the simulation's along a lane at ``y``;
+``ego.x``, ``y``, ``heading`` stay road-frame). ``ttc`` on a curved road is
 that of the unbent simulation (road-frame footprints and velocities: each vehicle keeps its speed
 along its lane), since a straight-ahead constant-velocity extrapolation in the ego frame would see
 the next lane's cars cross the ego's path: docs/road_curves.md.
@@ -73,7 +75,9 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
     visible = pixel_boxes(np.asarray(id_mask))
     vehicles = [v for v in world.vehicles if v.id in visible]
     vehicles.sort(key=lambda v: v.id)
-    ego_truth = EgoTruth(speed=float(ego.speed), x=float(ego.x), y=float(ego.y), heading=float(ego.heading),
+    speed = float(ego.speed) if world.plan is None else float(np.hypot(    # the bent lane's stretch: 1 - kappa y
+        ego.vx * (1 - float(world.plan.curvature(ego.x)) * ego.y), ego.vy))
+    ego_truth = EgoTruth(speed=speed, x=float(ego.x), y=float(ego.y), heading=float(ego.heading),
                          lane=int(ego.lane), crashed=bool(ego.crashed))
     pose = None
     if camera is not nominal:

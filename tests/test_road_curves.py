@@ -143,9 +143,11 @@ def test_truth_on_a_known_circle_is_the_closed_form(sign):
     world = WorldState(0, 0.0, ego, (car,), plan=plan)
     mask = np.full((camera.height, camera.width), -1)
     mask[200, 320] = 1
-    obj = frame_truth(world, camera, mask, {1: 1.0}).objects[0]
+    record = frame_truth(world, camera, mask, {1: 1.0})
+    obj = record.objects[0]
 
     rho = R - sign * LANE_W                            # the lane's radius
+    assert record.ego.speed == pytest.approx(ego.vx * rho / R, abs=1e-9)   # the ego's speed on its lane
     phi_e, phi_c = (ego.x - x_start) / R, (car.x - x_start) / R
     fwd_e = np.array([math.cos(sign * phi_e), math.sin(sign * phi_e)])
     right_e = np.array([-fwd_e[1], fwd_e[0]])
