@@ -106,14 +106,17 @@ def test_overlapping_curves_rejected_and_straight_road_dumps_as_before():
     assert dumped["road"]["curves"][0]["radius_m"] == 600
 
 
-def test_cli_radius_too_small_exits_2(tmp_path, capsys):
-    bad = tmp_path / "s.yaml"
-    bad.write_text("name: s\nduration_s: 0.2\nroad: {curves: [{start_m: 50, radius_m: 20, direction: left}]}\n")
-    out = tmp_path / "o"
-    assert main(["run", str(bad), "--detector", "oracle", "--out", str(out)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "road.curves.0.radius_m" in err
-    assert "Traceback" not in err and not out.exists()
+@pytest.mark.parametrize("curves, field", [
+    ("[{start_m: 50, radius_m: 20, direction: left}]", "road.curves.0.radius_m"),
+    ("[{start_m: 0, radius_m: 900, direction: left, length_m: 90}, {start_m: 80, radius_m: 900, direction: right}]",
+     "curves.1.start_m"),
+])
+def test_cli_bad_curves_exit_2_with_one_line(tmp_path, capsys, curves, field):
+    (tmp_path / "s.yaml").write_text(f"name: s\nduration_s: 0.2\nroad: {{curves: {curves}}}\n")
+    code = main(["run", str(tmp_path / "s.yaml"), "--detector", "oracle", "--out", str(tmp_path / "o")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert (code, len(lines)) == (2, 1) and field in lines[0] and "Traceback" not in lines[0]
+    assert not (tmp_path / "o").exists()
 
 
 # ------------------------------------------------------------------ 3-D placement and truth
