@@ -277,3 +277,21 @@ def test_straight_plan_renders_byte_identical_frames():
     assert all(o.s_long is not None and o.s_lat is not None for o in bent[0][1].objects)
     line = bent[0][1].to_json()["objects"][0]
     assert list(line)[:8] == ["id", "name", "box", "visibility", "d_long", "s_long", "d_lat", "s_lat"]
+
+
+def test_shipped_curve_scenario_and_curves_sweep():
+    from pathlib import Path
+
+    from harness.scenario import load_scenario
+    from harness.sweep.axes import _log_scale
+    from harness.sweep.expand import load_and_expand
+
+    root = Path(__file__).resolve().parents[1] / "scenarios" / "conditions"
+    curve = load_scenario(root / "curve.yaml").road.curves[0]
+    assert (curve.start_m, curve.radius_m, curve.direction) == (50.0, 500.0, "left")
+    exp = load_and_expand(root / "curves.yaml")
+    radii = [t.scenario["road"]["curves"][0]["radius_m"] for t in exp.tasks]
+    assert set(radii) == {100000.0, 1000.0, 500.0, 300.0} and len(exp.tasks) == 32
+    assert not any(t.error for t in exp.tasks)                  # 300 m still turns less than 90 deg
+    assert {t.pipeline["ego_speed"]["name"] for t in exp.tasks} == {"ground_track", "lsd_period"}
+    assert _log_scale(sorted(set(radii))) and not _log_scale([-0.04, 0.0, 0.04]) and not _log_scale([1.0, 50.0])
