@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_valid
 
 from harness.camera_motion import CameraMotion
 from harness.config_io import validate_config
+from harness.road_plan import MAX_TURN_RAD, MIN_RADIUS_M
 from harness.road_profile import MAX_GRADE
 
 from monorarp.camera import CameraError, CameraModel
@@ -55,6 +56,27 @@ class GradeChange(_Model):
     transition_m: float = Field(0.0, ge=0, le=2000, description="length of the vertical curve, m")
 
 
+class Curve(_Model):
+    """From ``start_m`` (road x ahead of the camera at t = 0, the origin of ``distance_m``) the road
+    turns ``direction`` along a clothoid ``transition_m`` long into an arc of ``radius_m`` for
+    ``length_m``, then a clothoid of ``transition_m`` back to straight (:mod:`harness.road_plan`)."""
+
+    start_m: float = Field(ge=-1000, le=5000)
+    radius_m: float = Field(ge=MIN_RADIUS_M, le=100000, description="radius of the arc, m")
+    direction: Literal["left", "right"]
+    length_m: float = Field(0.0, ge=0, le=5000, description="length of the arc at radius_m, m")
+    transition_m: float = Field(0.0, ge=0, le=2000, description="length of each clothoid, m")
+
+    @property
+    def end_m(self) -> float:
+        return self.start_m + 2 * self.transition_m + self.length_m
+
+    @property
+    def turn_rad(self) -> float:
+        """Signed heading change (rad, + right)."""
+        return (1 if self.direction == "right" else -1) * (self.transition_m + self.length_m) / self.radius_m
+
+
 class Road(_Model):
     lanes: int = Field(3, ge=1, le=8)
     lane_width_m: float = Field(4.0, ge=2.5, le=6.0)
@@ -63,6 +85,7 @@ class Road(_Model):
     speed_limit_mps: float = Field(33.0, gt=0, le=60)
     markings: Markings = Markings()
     profile: list[GradeChange] = Field([], description="vertical profile: grade changes in order; empty: level")
+    curves: list[Curve] = Field([], description="horizontal curves in order; empty: straight")
 
     @model_validator(mode="after")
     def _ordered(self) -> "Road":
@@ -71,6 +94,15 @@ class Road(_Model):
             if seg.start_m < prev.start_m + prev.transition_m:
                 raise ValueError(f"profile.{i}.start_m: {seg.start_m} m lies before the end of the previous "
                                  f"change's transition ({prev.start_m + prev.transition_m} m)")
+        heading = 0.0
+        for i, seg in enumerate(self.curves):
+            if i and seg.start_m < self.curves[i - 1].end_m:
+                raise ValueError(f"curves.{i}.start_m: {seg.start_m} m lies before the end of the previous "
+                                 f"curve ({self.curves[i - 1].end_m} m)")
+            heading += seg.turn_rad
+            if abs(heading) > MAX_TURN_RAD + 1e-9:
+                raise ValueError(f"curves.{i}: the road would turn {math.degrees(heading):.0f} deg from its "
+                                 f"start (at most {math.degrees(MAX_TURN_RAD):.0f})")
         return self
 
     @model_serializer(mode="wrap")
@@ -78,6 +110,8 @@ class Road(_Model):
         data = handler(self)
         if not self.profile:   # a level road dumps as before the field existed
             data.pop("profile", None)
+        if not self.curves:    # so does a straight one
+            data.pop("curves", None)
         return data
 
 

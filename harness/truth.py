@@ -8,7 +8,8 @@ What each field means (frames, units, how it is computed) is written once, in
 (``speed``, ``x``, ``y``, ``heading``, ``lane``, ``crashed``), ``objects`` (``id``, ``name``,
 ``box``, ``visibility``, ``d_long``, ``d_lat``, ``v_long``, ``v_lat``, ``ttc``, ``lane_rel``,
 ``corners_cam``, ``length``, ``width``, ``crashed``, and ``counted`` only when set; ``s_long``
-follows ``d_long`` only on a road with a vertical profile), then
+follows ``d_long`` only on a road with a vertical profile or curves, ``s_lat`` follows ``d_lat`` only
+on a curved road), then
 ``camera`` (a moving camera only). :meth:`FrameTruth.from_json` reads it back; optional fields
 absent from the dict are None (``crashed``: False).
 """
@@ -43,14 +44,18 @@ class ObjectTruth:
     width: float | None = None
     crashed: bool = False
     counted: bool | None = None                 # a labelled dataset's own "must be found" flag
-    s_long: float | None = None                 # along-road distance, camera's foot point to rear face (profile only)
+    s_long: float | None = None                 # along-road distance, camera's foot point to rear face (profile, curves)
+    s_lat: float | None = None                  # along-road lateral offset of the rear face, + right (curves only)
 
     def to_json(self) -> dict[str, Any]:
         d = {"id": self.id, "name": self.name, "box": list(self.box), "visibility": self.visibility,
              "d_long": self.d_long}
         if self.s_long is not None:
             d["s_long"] = self.s_long
-        d |= {"d_lat": self.d_lat, "v_long": self.v_long, "v_lat": self.v_lat,
+        d["d_lat"] = self.d_lat
+        if self.s_lat is not None:
+            d["s_lat"] = self.s_lat
+        d |= {"v_long": self.v_long, "v_lat": self.v_lat,
               "ttc": self.ttc, "lane_rel": self.lane_rel,
               "corners_cam": None if self.corners_cam is None else [list(c) for c in self.corners_cam],
               "length": self.length, "width": self.width, "crashed": self.crashed}
@@ -68,7 +73,7 @@ class ObjectTruth:
                    corners_cam=None if corners is None else tuple(tuple(float(v) for v in c) for c in corners),
                    length=_opt(d.get("length"), float), width=_opt(d.get("width"), float),
                    crashed=bool(d.get("crashed", False)), counted=_opt(d.get("counted"), bool),
-                   s_long=_opt(d.get("s_long"), float))
+                   s_long=_opt(d.get("s_long"), float), s_lat=_opt(d.get("s_lat"), float))
 
 
 @dataclass(frozen=True)

@@ -4,13 +4,16 @@ Road frame (highway-env's): ``x`` along the road (m), ``y`` across it (m,
 increasing towards higher lane indices, i.e. to the right of travel), heading
 in rad from +x towards +y. Lane 0 is the leftmost lane; its centre is y = 0.
 With a vertical ``profile`` (:mod:`harness.road_profile`) the point ``(x, y)`` lies at height
-``profile.z(x)``; without one the road is the plane z = 0.
+``profile.z(x)``; without one the road is the plane z = 0. With a horizontal ``plan``
+(:mod:`harness.road_plan`) the point lies at the horizontal position ``plan.to_plane(x, y)``: ``x`` is
+then the arc length along the bent lane 0 centre; without one the road is straight.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from harness.road_plan import RoadPlan
 from harness.road_profile import RoadProfile
 
 
@@ -37,3 +40,4 @@ class WorldState:
     ego: VehicleState
     vehicles: tuple[VehicleState, ...] = field(default_factory=tuple)  # every non-ego vehicle
     profile: RoadProfile | None = None   # the road's vertical profile; None: level
+    plan: RoadPlan | None = None         # the road's horizontal curves; None: straight

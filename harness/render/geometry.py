@@ -17,8 +17,10 @@ With a vertical road profile (:mod:`harness.road_profile`) the ground is ``Z = z
 vehicle's model frame (the ego's body frame too) sits at ``(x, -y, z(x))``, its ``Z`` along the
 road's normal there and ``X`` along its heading in the road's tangent plane (pitched by
 ``atan(slope(x))``); the ego frame and the camera ride on the ego's body frame, so the camera's
-pose relative to the road under the ego stays the calibrated one. Without a profile (None) every
-function here computes exactly what it did on the level road.
+pose relative to the road under the ego stays the calibrated one. With a horizontal plan
+(:mod:`harness.road_plan`) the origin is at ``plan.to_plane(x, y)`` and the yaw is the road's heading
+``theta(x)`` plus the vehicle's own heading. Without a profile and a plan (None) every function here
+computes exactly what it did on the level straight road.
 
 Footprint corner order (4, per vehicle, its own left/right): rear-left,
 rear-right, front-right, front-left. 3-D box corner order (8): those four on the
@@ -29,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from harness.road_plan import RoadPlan
 from harness.road_profile import RoadProfile
 from harness.world import VehicleState
 from monorarp.camera import CameraModel
@@ -91,48 +94,61 @@ def box_corners_ego(footprints_ego: np.ndarray, heights: np.ndarray, camera: Cam
 
 
 def vehicle_corners_ego(vehicles, ego: VehicleState, camera: CameraModel, heights: np.ndarray,
-                        profile: RoadProfile | None = None) -> np.ndarray:
-    """(N, 8, 3) 3-D box corners of ``vehicles`` in the ego frame (m), on the level road or ``profile``."""
-    if profile is None:
+                        profile: RoadProfile | None = None, plan: RoadPlan | None = None) -> np.ndarray:
+    """(N, 8, 3) 3-D box corners of ``vehicles`` in the ego frame (m), on the level straight road or
+    on ``profile`` and/or ``plan``."""
+    if profile is None and plan is None:
         return box_corners_ego(vehicles_footprints_ego(vehicles, ego, camera), heights, camera)
     if not vehicles:
         return np.zeros((0, 8, 3))
     arr = np.array([[v.x, v.y, v.heading, v.length, v.width] for v in vehicles], dtype=float)
-    origin, rot = body_frames_world(arr[:, 0], arr[:, 1], arr[:, 2], profile)
+    origin, rot = body_frames_world(arr[:, 0], arr[:, 1], arr[:, 2], profile, plan)
     foot = np.stack([_FOOT[:, 0] * arr[:, 3:4] / 2, -_FOOT[:, 1] * arr[:, 4:5] / 2], axis=-1)   # model X, Y
     model = np.concatenate([np.concatenate([foot, np.zeros((len(arr), 4, 1))], axis=-1),
                             np.concatenate([foot, np.broadcast_to(np.reshape(heights, (-1, 1, 1)),
                                                                   (len(arr), 4, 1))], axis=-1)], axis=1)
     world = origin[:, None, :] + np.einsum("nij,nkj->nki", rot, model)
-    return world_to_ego(world, ego, camera, profile)
+    return world_to_ego(world, ego, camera, profile, plan)
 
 
 # ------------------------------------------------------------------ world frame W
-def body_frames_world(x, y, heading, profile: RoadProfile) -> tuple[np.ndarray, np.ndarray]:
-    """Model frames on the profiled road: origins (N, 3) in W and rotations (N, 3, 3) W <- model
-    (columns: forward, left, up), for road-frame centres ``x``, ``y`` (m) and headings (rad)."""
+def body_frames_world(x, y, heading, profile: RoadProfile | None,
+                      plan: RoadPlan | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Model frames on the profiled and/or curved road: origins (N, 3) in W and rotations (N, 3, 3)
+    W <- model (columns: forward, left, up), for road-frame centres ``x``, ``y`` (m) and headings (rad)."""
     x, y, h = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (x, y, heading))
-    s = profile.slope(x)
-    up = np.stack([-s, np.zeros_like(s), np.ones_like(s)], axis=-1)
+    if plan is None:
+        s = profile.slope(x)
+        up = np.stack([-s, np.zeros_like(s), np.ones_like(s)], axis=-1)
+        f0 = np.stack([np.cos(h), -np.sin(h), np.zeros_like(h)], axis=-1)
+        origin = np.stack([x, -y, profile.z(x)], axis=-1)
+    else:
+        th, p = plan.theta(x), plan.to_plane(x, y)
+        # slope along the lane at offset y, which advances (1 - kappa y) per unit x
+        s = np.zeros_like(x) if profile is None else profile.slope(x) / (1 - plan.curvature(x) * y)
+        up = np.stack([-s * np.cos(th), s * np.sin(th), np.ones_like(s)], axis=-1)
+        f0 = np.stack([np.cos(th + h), -np.sin(th + h), np.zeros_like(h)], axis=-1)
+        origin = np.stack([p[:, 0], -p[:, 1], np.zeros_like(x) if profile is None else profile.z(x)], axis=-1)
     up /= np.linalg.norm(up, axis=-1, keepdims=True)
-    f0 = np.stack([np.cos(h), -np.sin(h), np.zeros_like(h)], axis=-1)
     fwd = f0 - np.sum(f0 * up, axis=-1, keepdims=True) * up
     fwd /= np.linalg.norm(fwd, axis=-1, keepdims=True)
-    return np.stack([x, -y, profile.z(x)], axis=-1), np.stack([fwd, np.cross(up, fwd), up], axis=-1)
+    return origin, np.stack([fwd, np.cross(up, fwd), up], axis=-1)
 
 
-def ego_frame_world(ego: VehicleState, camera: CameraModel, profile: RoadProfile) -> tuple[np.ndarray, np.ndarray]:
-    """The ego frame on the profiled road: its origin (the camera, (3,) in W) and rotation W <- ego
-    (columns: right, ahead, up of the ego's body)."""
-    origin, rot = body_frames_world(ego.x, ego.y, ego.heading, profile)
+def ego_frame_world(ego: VehicleState, camera: CameraModel, profile: RoadProfile | None,
+                    plan: RoadPlan | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The ego frame on the profiled and/or curved road: its origin (the camera, (3,) in W) and
+    rotation W <- ego (columns: right, ahead, up of the ego's body)."""
+    origin, rot = body_frames_world(ego.x, ego.y, ego.heading, profile, plan)
     fwd, left, up = rot[0].T
     cam = origin[0] + camera.forward_offset_m * fwd - camera.lateral_offset_m * left + camera.height_m * up
     return cam, np.stack([-left, fwd, up], axis=-1)
 
 
-def world_to_ego(points_w: np.ndarray, ego: VehicleState, camera: CameraModel, profile: RoadProfile) -> np.ndarray:
+def world_to_ego(points_w: np.ndarray, ego: VehicleState, camera: CameraModel, profile: RoadProfile | None,
+                 plan: RoadPlan | None = None) -> np.ndarray:
     """(..., 3) points in W -> (..., 3) ego frame (x right, y ahead, z up of the ego's body; origin at the camera)."""
-    cam, rot = ego_frame_world(ego, camera, profile)
+    cam, rot = ego_frame_world(ego, camera, profile, plan)
     return (np.asarray(points_w, dtype=float) - cam) @ rot
 
 
@@ -143,11 +159,11 @@ def road_to_world(points: np.ndarray) -> np.ndarray:
     return p
 
 
-def vehicle_pose_world(v: VehicleState, profile: RoadProfile | None = None) -> np.ndarray:
+def vehicle_pose_world(v: VehicleState, profile: RoadProfile | None = None, plan: RoadPlan | None = None) -> np.ndarray:
     """4x4 pose of a vehicle's model frame in W."""
     pose = np.eye(4)
-    if profile is not None:
-        origin, rot = body_frames_world(v.x, v.y, v.heading, profile)
+    if profile is not None or plan is not None:
+        origin, rot = body_frames_world(v.x, v.y, v.heading, profile, plan)
         pose[:3, :3], pose[:3, 3] = rot[0], origin[0]
         return pose
     c, s = np.cos(-v.heading), np.sin(-v.heading)
@@ -156,10 +172,11 @@ def vehicle_pose_world(v: VehicleState, profile: RoadProfile | None = None) -> n
     return pose
 
 
-def camera_pose_world(ego: VehicleState, camera: CameraModel, profile: RoadProfile | None = None) -> np.ndarray:
+def camera_pose_world(ego: VehicleState, camera: CameraModel, profile: RoadProfile | None = None,
+                      plan: RoadPlan | None = None) -> np.ndarray:
     """4x4 pose (camera -> W) of the OpenGL camera (x right, y up, looking along -z)."""
-    if profile is not None:
-        cam_w, r_w_from_ego = ego_frame_world(ego, camera, profile)
+    if profile is not None or plan is not None:
+        cam_w, r_w_from_ego = ego_frame_world(ego, camera, profile, plan)
     else:
         fwd, right = heading_axes(ego.heading)
         r_w_from_ego = np.array([[right[0], fwd[0], 0.0],

@@ -40,7 +40,7 @@ from OpenGL import GL  # noqa: E402
 from harness.render import effects, geometry, meshes, passes, road, shading, visibility  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
 from harness.scenario import Scenario  # noqa: E402
-from harness.simulation.placement import road_profile  # noqa: E402
+from harness.simulation.placement import road_plan, road_profile  # noqa: E402
 from harness.world import VehicleState, WorldState  # noqa: E402
 from monorarp.camera import CameraModel  # noqa: E402
 
@@ -171,7 +171,8 @@ class Renderer:
         self._scene = pyrender.Scene(bg_color=(*sky, 1.0), ambient_light=(0.0, 0.0, 0.0))
         self._material = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0))
         self._profile = road_profile(scenario.road.profile, scenario.camera.forward_offset_m)
-        for tm in road.road_trimeshes(scenario.road, self._profile).values():
+        self._plan = road_plan(scenario.road.curves, scenario.camera.forward_offset_m)
+        for tm in road.road_trimeshes(scenario.road, self._profile, self._plan).values():
             colors = self._shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w)
             _add_mesh(self._scene, _flat_mesh(tm.vertices[tm.faces], colors, self._material))
         c = self.camera
@@ -222,9 +223,10 @@ class Renderer:
         nodes = []
         for v in vehicles:
             dims = (v.length, v.width)
-            hbin = int(round(v.heading / HEADING_BIN_RAD))
+            yaw = v.heading if self._plan is None else v.heading + float(self._plan.theta(v.x))
+            hbin = int(round(yaw / HEADING_BIN_RAD))
             entry = self._vehicles.get(v.id)
-            pose = geometry.vehicle_pose_world(v, self._profile)
+            pose = geometry.vehicle_pose_world(v, self._profile, self._plan)
             if entry is None or entry.dims != dims:
                 if entry is not None:
                     self._scene.remove_node(entry.node)
@@ -269,9 +271,10 @@ class Renderer:
         c = self.frame_camera
         vehicles = tuple(world.vehicles)
         nodes = self._sync_vehicles(vehicles)
-        self._scene.set_pose(self._cam_node, geometry.camera_pose_world(world.ego, c, self._profile))
+        self._scene.set_pose(self._cam_node, geometry.camera_pose_world(world.ego, c, self._profile, self._plan))
         heights = np.array([meshes.vehicle_height(v.length, v.width) for v in vehicles])
-        corners_cam = c.ego_to_cam(geometry.vehicle_corners_ego(vehicles, world.ego, c, heights, self._profile))
+        corners_cam = c.ego_to_cam(geometry.vehicle_corners_ego(vehicles, world.ego, c, heights, self._profile,
+                                                                  self._plan))
         boxes = visibility.projected_boxes(corners_cam, c, ZNEAR_M)
         in_front = (corners_cam[..., 2] > ZNEAR_M).any(axis=1)
         drawn = (in_front & (boxes[:, 2] >= -0.5) & (boxes[:, 0] <= c.width - 0.5)

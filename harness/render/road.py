@@ -13,6 +13,11 @@ the road's ends.
 With a vertical profile (:mod:`harness.road_profile`) every rectangle is cut across the road at
 the profile's sample points (1 m apart inside each vertical curve) and each vertex lifted to
 ``z(x)``, so the surfaces bend with the road and still tile it.
+
+With a horizontal plan (:mod:`harness.road_plan`) every rectangle is also cut across the road
+``PLAN_STEP_M`` apart over each curve and each vertex ``(x, y)`` moved to ``plan.to_plane(x, y)``;
+the grass then reaches ``min(GRASS_EXTENT_M, 0.5 R_min)`` beside the road, so that on the inside
+of the tightest curve it stops before the centre of curvature, where the mapping would fold.
 """
 
 from __future__ import annotations
@@ -20,12 +25,16 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
+from harness.road_plan import RoadPlan
 from harness.road_profile import RoadProfile
 from harness.scenario import Road
 
 GRASS_EXTENT_M = 2000.0
 PROFILE_STEP_M = 1.0
 """Spacing (m) of the cuts across the road inside a vertical curve."""
+PLAN_STEP_M = 2.0
+"""Spacing (m) of the cuts across the road over a horizontal curve: a chord leaves the arc by
+``step^2 / (8 R)``, 1.7 mm at R = 300 m (3.3 mm at the inner grass edge, R / 2 from the centre)."""
 
 SURFACE_COLORS = {  # RGB 0..255
     "asphalt": (60, 60, 62),
@@ -35,8 +44,9 @@ SURFACE_COLORS = {  # RGB 0..255
 }
 
 
-def road_rectangles(road: Road) -> dict[str, np.ndarray]:
-    """Road-frame rectangles ``(K, 4)`` rows ``[x0, x1, y0, y1]`` (m) per surface kind."""
+def road_rectangles(road: Road, grass_m: float = GRASS_EXTENT_M) -> dict[str, np.ndarray]:
+    """Road-frame rectangles ``(K, 4)`` rows ``[x0, x1, y0, y1]`` (m) per surface kind; grass
+    ``grass_m`` wide beside the road and before/after its ends."""
     m = road.markings
     lw, half = road.lane_width_m, road.markings.width_m / 2
     length = road.length_m
@@ -66,7 +76,7 @@ def road_rectangles(road: Road) -> dict[str, np.ndarray]:
 
     # Shoulders, then grass all around.
     rects["shoulder"] += [[0.0, length, out_l, y_left - half], [0.0, length, y_right + half, out_r]]
-    g = GRASS_EXTENT_M
+    g = grass_m
     rects["grass"] += [[-g, length + g, out_l - g, out_l], [-g, length + g, out_r, out_r + g],
                        [-g, 0.0, out_l, out_r], [length, length + g, out_l, out_r]]
     result = {}
@@ -87,11 +97,13 @@ def split_along(rects: np.ndarray, xs: np.ndarray) -> np.ndarray:
 
 
 def rectangles_trimesh(rects: np.ndarray, color: tuple[int, int, int],
-                       profile: RoadProfile | None = None) -> trimesh.Trimesh:
+                       profile: RoadProfile | None = None, plan: RoadPlan | None = None) -> trimesh.Trimesh:
     """Road-frame rectangles -> one upward-facing ground mesh in the world frame W (Y = -y),
-    level or following ``profile``."""
+    level or following ``profile``, straight or following ``plan``."""
     if profile is not None:
         rects = split_along(rects, profile.curved_x(PROFILE_STEP_M))
+    if plan is not None:
+        rects = split_along(rects, plan.curved_x(PLAN_STEP_M))
     x0, x1, y0, y1 = rects.T
     # Corners in W, counter-clockwise seen from above (+Z): Y = -y.
     corners = np.stack([np.stack([x0, -y1], -1), np.stack([x1, -y1], -1),
@@ -99,6 +111,9 @@ def rectangles_trimesh(rects: np.ndarray, color: tuple[int, int, int],
     verts = np.concatenate([corners.reshape(-1, 2), np.zeros((corners.size // 2, 1))], axis=1)
     if profile is not None:
         verts[:, 2] = profile.z(verts[:, 0])
+    if plan is not None:
+        p = plan.to_plane(verts[:, 0], -verts[:, 1])
+        verts[:, 0], verts[:, 1] = p[:, 0], -p[:, 1]
     base = 4 * np.arange(len(rects))[:, None]
     faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]], axis=0)
     mesh = trimesh.Trimesh(verts, faces, process=False)
@@ -106,6 +121,15 @@ def rectangles_trimesh(rects: np.ndarray, color: tuple[int, int, int],
     return mesh
 
 
-def road_trimeshes(road: Road, profile: RoadProfile | None = None) -> dict[str, trimesh.Trimesh]:
+def road_trimeshes(road: Road, profile: RoadProfile | None = None,
+                   plan: RoadPlan | None = None) -> dict[str, trimesh.Trimesh]:
     """One merged W-frame mesh per surface kind (asphalt, marking, shoulder, grass)."""
-    return {k: rectangles_trimesh(r, SURFACE_COLORS[k], profile) for k, r in road_rectangles(road).items() if len(r)}
+    if plan is None:
+        rects = road_rectangles(road)
+    else:   # every piece over a curve cut at every rectangle's ends too: no T-junction opens a crack
+        rects = road_rectangles(road, min(GRASS_EXTENT_M, 0.5 * plan.min_radius()))
+        curved = plan.curved_x(PLAN_STEP_M)
+        edges = np.unique(np.concatenate([r[:, :2].ravel() for r in rects.values()]))
+        cuts = np.r_[curved, edges[(edges > curved[0]) & (edges < curved[-1])]]
+        rects = {k: split_along(r, cuts) for k, r in rects.items()}
+    return {k: rectangles_trimesh(r, SURFACE_COLORS[k], profile, plan) for k, r in rects.items() if len(r)}

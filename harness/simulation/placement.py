@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.road_plan import RoadPlan
 from harness.road_profile import RoadProfile
 
 EGO_START_X_M = 250.0
@@ -51,6 +52,11 @@ def road_profile(segments, camera_forward_offset_m: float) -> RoadProfile | None
     """A scenario's ``road.profile`` in absolute road ``x``: each ``start_m`` is measured from the
     camera at t = 0 (like a placed vehicle's ``distance_m``); None for a level road."""
     return RoadProfile.from_segments(segments, EGO_START_X_M + camera_forward_offset_m)
+
+
+def road_plan(curves, camera_forward_offset_m: float) -> RoadPlan | None:
+    """A scenario's ``road.curves`` in absolute road ``x`` (``start_m`` from the camera at t = 0); None: straight."""
+    return RoadPlan.from_segments(curves, EGO_START_X_M + camera_forward_offset_m)
 
 
 def cut_in_distance(gap_m: float, at_s: float, vehicle_speed_mps: float, ego_speed_mps: float) -> float:

@@ -18,7 +18,7 @@ from harness import scenario as sc
 from harness.scenario import ScenarioError
 from harness.simulation.events import timed_events
 from harness.simulation.placement import (
-    EGO_START_X_M, ROAD_START_MARGIN_M, Footprint, cut_in_distance, placed_centre_x, road_profile, traffic_slots)
+    EGO_START_X_M, ROAD_START_MARGIN_M, Footprint, cut_in_distance, placed_centre_x, road_plan, road_profile, traffic_slots)
 from harness.simulation.road import build_road, lane_centre_y
 from harness.simulation.vehicles import Clock, ScenarioVehicle, StationaryVehicle
 from harness.world import VehicleState, WorldState
@@ -53,6 +53,7 @@ class Simulation:
         self.road.objects = [v for v in placed if isinstance(v, StationaryVehicle)]
         self._others = sorted([*placed, *traffic], key=lambda v: v.vid)
         self.profile = road_profile(scenario.road.profile, scenario.camera.forward_offset_m)
+        self.plan = road_plan(scenario.road.curves, scenario.camera.forward_offset_m)
 
     # ---------------------------------------------------------------- public
     @property
@@ -62,7 +63,8 @@ class Simulation:
     def state(self) -> WorldState:
         """The current frame's exact state (frame 0 = initial placement at t = 0)."""
         return WorldState(frame=self._clock.frame, t=self._clock.t, ego=vehicle_state(self.ego),
-                          vehicles=tuple(vehicle_state(v) for v in self._others), profile=self.profile)
+                          vehicles=tuple(vehicle_state(v) for v in self._others), profile=self.profile,
+                          plan=self.plan)
 
     def step(self) -> WorldState:
         """Advance exactly one frame (``road.act(); road.step(dt)``) and return the new state."""

@@ -2,7 +2,8 @@
 
 For an axis, the runs are grouped by (variant, axis value) and a metric's mean over
 the group's finished runs is plotted (so with several axes each point averages over
-the others). Numeric axes are drawn on a numeric x axis; an axis with any
+the others). Numeric axes are drawn on a numeric x axis (logarithmic when its positive values span
+a factor of 100 or more, e.g. a curve radius from 300 m to 100 km); an axis with any
 non-numeric value (e.g. ``conditions.time_of_day``, or ``null`` = effect off) is
 drawn as categories in the spec's order.
 """
@@ -22,6 +23,11 @@ def _num(v: Any) -> float | None:
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         return None
     return float(v)
+
+
+def _log_scale(values: Sequence[float]) -> bool:
+    """Whether a numeric axis reads better logarithmic: all values positive, spanning >= 100x."""
+    return bool(values) and min(values) > 0 and max(values) >= 100 * min(values)
 
 
 def axis_table(rows: Sequence[Mapping], key: str, metric: str) -> dict[str, list[tuple[Any, float | None]]]:
@@ -66,6 +72,8 @@ def axis_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Se
                 xs = [float(v) if numeric else i for i, (v, _) in enumerate(pts)]
                 ys = [float("nan") if y is None else y for _, y in pts]
                 ax.plot(xs, ys, marker="o", label=variant)
+            if numeric and _log_scale([float(v) for v, _ in any_values]):
+                ax.set_xscale("log")
             if not numeric:
                 ax.set_xticks(range(len(any_values)), [format_value(v) for v, _ in any_values], rotation=30)
             ax.set_title(metric, fontsize=9)
