@@ -10,8 +10,8 @@ box cut by a side border keeps its height.
 
 Per track a constant-velocity Kalman filter on ``ln h`` (state: log height, rate), measurement
 noise from ``pixel_std`` on each of the two edges; a box cut by the top or bottom border, a
-coasting box or one under 2 px gives no measurement (the filter predicts); a jump beyond
-``restart_sigmas`` restarts it (the tracker's box moved to another vehicle).
+coasting box or one under 2 px gives no measurement (the filter predicts); the caller restarts a
+track's filter when its box moved to another vehicle (the distance filter's restart).
 """
 
 from __future__ import annotations
@@ -27,22 +27,23 @@ class ExpansionFilter:
     """``update(ids, boxes, valid, t) -> (rate, rate_std)`` per box (1/s; NaN before a first measurement).
 
     Parameters:
-        pixel_std: one-sigma (px) of each of the box's top and bottom edges.
+        pixel_std: one-sigma (px) of each of the box's top and bottom edges (1 px: a detector's box
+            top jumps by several px from frame to frame on trucks, which a smaller value reads as a
+            sudden change of scale).
         process_std: white change of the rate (1/s^2): the rate of a vehicle met at constant speed
             grows as ``rate^2`` (0.25 /s^2 at 2 s to contact, 1 at 1 s).
         init_rate_std: prior one-sigma of the rate (1/s) at a track's first measurement.
-        restart_sigmas: an innovation beyond this many sigmas restarts the track's filter.
         forget_s: a track unseen for this long (s) is forgotten.
     """
 
-    def __init__(self, pixel_std: float = 0.5, process_std: float = 1.0, init_rate_std: float = 1.0,
-                 restart_sigmas: float = 5.0, forget_s: float = 1.0) -> None:
+    def __init__(self, pixel_std: float = 1.0, process_std: float = 1.0, init_rate_std: float = 1.0,
+                 forget_s: float = 1.0) -> None:
         for name, v in (("pixel_std", pixel_std), ("process_std", process_std), ("init_rate_std", init_rate_std),
-                        ("restart_sigmas", restart_sigmas), ("forget_s", forget_s)):
+                        ("forget_s", forget_s)):
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be positive, got {v}")
         self.pixel_std, self.process_std = float(pixel_std), float(process_std)
-        self.init_rate_std, self.restart_sigmas = float(init_rate_std), float(restart_sigmas)
+        self.init_rate_std = float(init_rate_std)
         self.forget_s = float(forget_s)
         self.reset()
 
@@ -50,11 +51,12 @@ class ExpansionFilter:
         """Forget every track."""
         self._state: dict[int, tuple[np.ndarray, np.ndarray, float]] = {}   # id -> (x (2,), P (2, 2), t)
 
-    def update(self, ids: Sequence[int], boxes: np.ndarray, valid: np.ndarray,
-               t: float) -> tuple[np.ndarray, np.ndarray]:
+    def update(self, ids: Sequence[int], boxes: np.ndarray, valid: np.ndarray, t: float,
+               restart: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Rates and one-sigmas (1/s) of the (M, 4) ``boxes`` of tracks ``ids`` at frame time ``t`` (s).
 
-        ``valid`` (M,): the box's height is a measurement (not cut, not coasting).
+        ``valid`` (M,): the box's height is a measurement (not cut, not coasting); ``restart`` (M,):
+        start these tracks afresh (a new sighting).
         """
         for tid in [k for k, (_, _, tk) in self._state.items() if t - tk > self.forget_s]:
             del self._state[tid]
@@ -75,8 +77,8 @@ class ExpansionFilter:
         x, P = kf_predict(x, P, F, Q)
         z = np.log(np.where(valid, h, 1.0))
         r = (np.sqrt(2.0) * self.pixel_std / np.where(valid, h, 1.0)) ** 2
-        nis = (z - x[:, 0]) ** 2 / (P[:, 0, 0] + r)
-        fresh = valid & (~known | (nis > self.restart_sigmas ** 2))
+        restart = np.zeros(m, dtype=bool) if restart is None else np.asarray(restart, dtype=bool)
+        fresh = valid & (~known | restart)
         xu, Pu = kf_update(x, P, z, r)
         upd = valid & ~fresh
         x, P = np.where(upd[:, None], xu, x), np.where(upd[:, None, None], Pu, P)

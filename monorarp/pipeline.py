@@ -170,7 +170,8 @@ class Pipeline:
         if self.warning is None:
             rec.warning, rec.timings["warning"] = WarningState(), 0.0
         else:
-            rec.warning = rec.timed("warning", self.warning.update, rec.states, rec.risk, rec.frame.t)
+            rec.warning = rec.timed("warning", self.warning.update, rec.states, rec.risk, rec.frame.t,
+                                    ego_speed=rec.ego_speed)
         return rec
 
     @property

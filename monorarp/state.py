@@ -33,10 +33,16 @@ class StateEstimator:
         motion: Kalman motion model, ``"ca"`` (constant acceleration, default) or ``"cv"``.
         process_std: Kalman process noise: jerk std (m/s^3) for ``"ca"``, acceleration std (m/s^2) for ``"cv"``.
         pixel_std: Kalman measurement noise, box-edge std (px).
+        pixel_std_per_height: box-edge std per px of box height, added to ``pixel_std`` in
+            quadrature: a near vehicle's big box has fuzzier edges (its bottom edge flips between
+            the bumper and the tyres' contact by several px), and a frame larger than the
+            detector's input has proportionally coarser boxes.
         vehicle_width_m: ``W_r`` of equation 4.
         vehicle_length_m: assumed length (m), used only for the near edge of a box cut by the border.
         contact_offset_m, ground_clearance_m: the contact-line correction (0, 0 = the paper).
-        border_tol_px: a box edge this close to the image border (px) is the border's (None: never).
+        border_tol_px: a box edge this close to the image border (px) is the border's (None: never;
+            ``"auto"``, the default: 4 px per 640 px of image width, i.e. 2 px of the detector's
+            input, whose boxes are that coarse at any frame size: at 1920x1080, 12 px).
         max_coast_used: consecutive coasting frames after which a track is no longer output.
         side_cut_lateral_std_mps: the lateral-velocity uncertainty (m/s) reported at least, with
             ``ObjectState.v_x_std``, while the box is cut by a side border (the lateral reading is then
@@ -74,14 +80,15 @@ class StateEstimator:
                  process_std: float = 3.0, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,
                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17, max_coast_used: int = 2,
                  init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0,
-                 vehicle_length_m: float = 4.5, border_tol_px: float | None = BORDER_TOL_PX,
+                 vehicle_length_m: float = 4.5, border_tol_px: float | str | None = "auto",
                  side_cut_lateral_std_mps: float = 2.0, reinit_sigmas: float = 5.0,
                  contact_offset_std_m: float = 0.09, horizon_std_px: float = 0.0, grade_std: float = 0.0,
                  edge_std_px: float = 0.9, border_edge_std_px: float = 2.7,
                  lateral_pixel_std: float | None = None, robust_sigmas: float | None = None,
                  bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
                  bias_tau_s: float = 1.0, offset_learn_margin_px: float | None = None,
-                 max_inward_offset_m: float | None = 0.3, expansion_process_std: float = 1.0) -> None:
+                 max_inward_offset_m: float | None = 0.3, expansion_process_std: float = 1.0,
+                 pixel_std_per_height: float = 0.0) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -93,6 +100,8 @@ class StateEstimator:
         self.vehicle_length_m = float(vehicle_length_m)
         self.contact_offset_m = float(contact_offset_m)
         self.ground_clearance_m = float(ground_clearance_m)
+        if border_tol_px == "auto":
+            border_tol_px = BORDER_TOL_PX * self.camera.width / 640.0
         self.border_tol_px = None if border_tol_px is None else float(border_tol_px)
         self.max_coast_used = int(max_coast_used)
         self.side_cut_lateral_std_mps = float(side_cut_lateral_std_mps)
@@ -102,7 +111,7 @@ class StateEstimator:
         if max_inward_offset_m is not None and not (np.isfinite(max_inward_offset_m) and max_inward_offset_m >= 0):
             raise ValueError(f"max_inward_offset_m must be >= 0 or None, got {max_inward_offset_m}")
         self.max_inward_offset_m = None if max_inward_offset_m is None else float(max_inward_offset_m)
-        self._expansion = ExpansionFilter(pixel_std=max(self.pixel_std, 1e-3), process_std=expansion_process_std)
+        self._expansion = ExpansionFilter(process_std=expansion_process_std)
         if not reinit_sigmas > 0:
             raise ValueError(f"reinit_sigmas must be > 0, got {reinit_sigmas}")
         if robust_sigmas is not None and not robust_sigmas > 0:
@@ -110,6 +119,9 @@ class StateEstimator:
         if not bias_tau_s > 0:
             raise ValueError(f"bias_tau_s must be > 0, got {bias_tau_s}")
         self.lateral_pixel_std = self.pixel_std if lateral_pixel_std is None else float(lateral_pixel_std)
+        if not (np.isfinite(pixel_std_per_height) and pixel_std_per_height >= 0):
+            raise ValueError(f"pixel_std_per_height must be >= 0, got {pixel_std_per_height}")
+        self.pixel_std_per_height = float(pixel_std_per_height)
         self.robust_sigmas = None if robust_sigmas is None else float(robust_sigmas)
         self.bias_tau_s = float(bias_tau_s)
         if bias_pixel_std is None:
@@ -218,15 +230,17 @@ class StateEstimator:
         d = box_distance(self.camera, box, self.contact_offset_m, self.ground_clearance_m, None)[0]
         return max(float(d), 0.0)
 
-    def measurement_var(self, z: np.ndarray) -> np.ndarray:
-        """(M, 2) variances (m^2) of measured (d_x, d_y): ``pixel_std`` through equations 3 and 4.
+    def measurement_var(self, z: np.ndarray, box_h: np.ndarray | None = None) -> np.ndarray:
+        """(M, 2) variances (m^2) of measured (d_x, d_y): the box edges' pixel noise through equations 3 and 4.
 
-        ``d d_y / d v = d_y^2 / (h_c F)`` (so the error grows as d^2); the lateral error
-        adds the far edge's column error and the share of the distance error.
+        The pixel noise is ``pixel_std`` and ``pixel_std_per_height`` times the box height
+        ``box_h`` (px) in quadrature. ``d d_y / d v = d_y^2 / (h_c F)`` (so the error grows as
+        d^2); the lateral error adds the far edge's column error and the share of the distance error.
         """
         d_x, d_y = z[:, 0], np.maximum(z[:, 1], 0.1)
-        px = np.sqrt(self.pixel_std ** 2 + self._extra_px_var)
-        lat_px = np.sqrt(self.lateral_pixel_std ** 2 + self._extra_px_var)
+        rel = 0.0 if box_h is None else (self.pixel_std_per_height * np.nan_to_num(box_h, nan=0.0)) ** 2
+        px = np.sqrt(self.pixel_std ** 2 + self._extra_px_var + rel)
+        lat_px = np.sqrt(self.lateral_pixel_std ** 2 + self._extra_px_var + rel)
         s_y = d_y ** 2 / (self.camera.height_m * self.camera.fy) * px + 0.01
         s_x = d_y / self.camera.fx * lat_px + np.abs(d_x) / d_y * s_y + 0.01
         return np.stack([s_x, s_y], axis=1) ** 2
@@ -324,9 +338,10 @@ class StateEstimator:
         ok = known | new_ok
         if self.velocity == "kalman":
             cut_bottom = border_flags(self.camera, boxes, self.border_tol_px)[:, 2]
-            out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom)
+            out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom, boxes[:, 3] - boxes[:, 1])
             cut_top = boxes[:, 1] <= -0.5 + (self.border_tol_px or 0.0)
-            rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~cut_bottom & ~cut_top, t)
+            restart = np.array([self._born.get(i) == t for i in ids])
+            rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~cut_bottom & ~cut_top, t, restart)
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
@@ -361,7 +376,7 @@ class StateEstimator:
                 self._state[i], self._t[i] = zi, t
         return np.concatenate([z, v], axis=1)
 
-    def _kalman(self, ids, d_y, terms, coasting, known, ok, t, cut_bottom=None) -> np.ndarray:
+    def _kalman(self, ids, d_y, terms, coasting, known, ok, t, cut_bottom=None, box_h=None) -> np.ndarray:
         """Kalman filter per track and axis, vectorised over both (arrays of shape (M, 2, n)).
 
         Returns the (M, 4) states ``(d_x, d_y, v_x, v_y)``, their (M, 4) one-sigma
@@ -402,7 +417,7 @@ class StateEstimator:
         z = np.stack([lateral_from_terms(terms, y_ref), d_y], axis=1)
         has = np.isfinite(z)
         zf = np.where(has, z, x[:, :, 0])
-        r = self.measurement_var(np.nan_to_num(zf, nan=1.0))
+        r = self.measurement_var(np.nan_to_num(zf, nan=1.0), box_h)
         h = np.zeros((m, 2, N))
         h[..., 0] = 1.0
         if nb:

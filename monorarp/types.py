@@ -188,7 +188,8 @@ class EgoSpeedEstimator(Protocol):
 class WarningStage(Protocol):
     """The forward-collision warning decision for one frame."""
 
-    def update(self, states: dict[int, ObjectState], risk: RiskEstimate, t: float) -> WarningState: ...
+    def update(self, states: dict[int, ObjectState], risk: RiskEstimate, t: float,
+               ego_speed: float | None = None) -> WarningState: ...
 
 
 class HorizonStage(Protocol):

@@ -50,7 +50,8 @@ class ForwardCollisionWarning:
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
                  distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = 6.0,
-                 looming_sigmas: float | None = None, looming_factor: float = 2.5) -> None:
+                 looming_sigmas: float | None = None, looming_factor: float = 2.5,
+                 ego_speed_margin_mps: float | None = None) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):
@@ -71,6 +72,9 @@ class ForwardCollisionWarning:
             raise ValueError(f"looming_factor must be positive, got {looming_factor}")
         self.looming_sigmas = None if looming_sigmas is None else float(looming_sigmas)
         self.looming_factor = float(looming_factor)
+        if ego_speed_margin_mps is not None and not (np.isfinite(ego_speed_margin_mps) and ego_speed_margin_mps >= 0):
+            raise ValueError(f"ego_speed_margin_mps must be >= 0 or None, got {ego_speed_margin_mps}")
+        self.ego_speed_margin_mps = None if ego_speed_margin_mps is None else float(ego_speed_margin_mps)
         if max_raw_lateral_speed_mps is not None and not (np.isfinite(max_raw_lateral_speed_mps)
                                                           and max_raw_lateral_speed_mps > 0):
             raise ValueError(f"max_raw_lateral_speed_mps must be > 0 or None, got {max_raw_lateral_speed_mps}")
@@ -102,8 +106,13 @@ class ForwardCollisionWarning:
         self._last_threat_t: float | None = None
         self._last_t: float | None = None
 
-    def threats(self, states: dict[int, ObjectState]) -> dict[int, float]:
-        """Track id -> in-path TTC (s) of every object under the threshold (module docstring)."""
+    def threats(self, states: dict[int, ObjectState], ego_speed: float | None = None) -> dict[int, float]:
+        """Track id -> in-path TTC (s) of every object under the threshold (module docstring).
+
+        ``ego_speed`` (m/s, None: unknown): a vehicle ahead closes at most at the ego's speed (it
+        stops, it does not come back), so with ``ego_speed_margin_mps`` set a closing speed is
+        taken at most ``ego_speed + ego_speed_margin_mps``.
+        """
         if not states:
             return {}
         ids = list(states)
@@ -114,6 +123,8 @@ class ForwardCollisionWarning:
             d_y = d_y - self.distance_sigmas * np.array([0.0 if o.d_y_std is None else o.d_y_std for o in s])
         v_y_std = np.array([0.0 if o.v_y_std is None else o.v_y_std for o in s], dtype=float)
         v_y = significant_lateral_velocity([o.v_y for o in s], v_y_std, self.longitudinal_sigmas)
+        if self.ego_speed_margin_mps is not None and ego_speed is not None and np.isfinite(ego_speed):
+            v_y = np.maximum(v_y, -(max(float(ego_speed), 0.0) + self.ego_speed_margin_mps))
         v_x_std = np.array([self.lateral_velocity_std_mps if o.v_x_std is None else o.v_x_std for o in s])
         v_x = significant_lateral_velocity([o.v_x for o in s], v_x_std, self.lateral_sigmas)
         age = np.array([np.inf if o.age_s is None else o.age_s for o in s], dtype=float)
@@ -138,16 +149,17 @@ class ForwardCollisionWarning:
         return {i: float(v) for i, v in zip(ids, ttc) if np.isfinite(v) and v < self.ttc_threshold_s}
 
     def update(self, states: dict[int, ObjectState], risk: RiskEstimate | None = None,
-               t: float = 0.0) -> WarningState:
-        """The warning decision at frame time ``t`` (s). ``risk`` is not needed (the TTC is recomputed
-        with the discounted lateral velocity) and accepted for the common stage interface."""
+               t: float = 0.0, ego_speed: float | None = None) -> WarningState:
+        """The warning decision at frame time ``t`` (s), given the ego's speed (m/s) where known.
+        ``risk`` is not needed (the TTC is recomputed with the discounted lateral velocity) and
+        accepted for the common stage interface."""
         t = float(t)
         if not np.isfinite(t):
             raise ValueError(f"frame time must be finite, got {t}")
         if self._last_t is not None and t < self._last_t:
             self.reset()      # time went backwards: a new sequence (e.g. a looped video)
         self._last_t = t
-        threats = self.threats(states)
+        threats = self.threats(states, ego_speed)
         order = tuple(sorted(threats, key=lambda i: (threats[i], i)))
         if threats:
             if self._threat_since is None:
