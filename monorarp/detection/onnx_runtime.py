@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import io
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,18 +30,20 @@ def open_session(path: str | Path, intra_op_num_threads: int = 1):
 
     ``intra_op_num_threads``: threads for one operator (0 = onnxruntime's default, all cores).
     Raises :class:`ModelError` naming the file when it is missing or not a loadable ONNX model.
-    A session is shared by the callers that open the same file (same size and modification
-    time, inode) with the same threads (``run`` is stateless and thread-safe): the runs of a sweep
-    load the model once per process (10-30 ms each).
+    A session is shared by the callers that open the same file with the same content (sha256, ~2 ms for the
+    shipped 1.6 MB model) with the same threads (``run`` is stateless and thread-safe): the runs of
+    a sweep load the model once per process instead of once each (10-30 ms).
     """
     path = Path(path)
     try:
         if not path.is_file():
             raise ModelError(f"{path}: model file not found" if not path.exists() else f"{path}: not a regular file")
-        st = path.stat()
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    except PermissionError:
+        raise ModelError(f"{path}: cannot read model file (permission denied)") from None
     except OSError as e:   # e.g. a name too long
         raise ModelError(f"{str(path)[:200]}: cannot open model file ({e.strerror or e})") from None
-    key = (str(path.resolve()), st.st_ino, st.st_size, st.st_mtime_ns, int(intra_op_num_threads))
+    key = (str(path.resolve()), digest, int(intra_op_num_threads))
     session = _sessions.get(key)
     if session is None:
         session = _new_session(path, intra_op_num_threads)
