@@ -31,6 +31,7 @@ from monorarp.types import FrameResult
 
 if TYPE_CHECKING:
     from harness.frame_cache import FrameCache
+    from harness.sweep.detection_memo import DetectionMemo
 
 
 # ---------------------------------------------------------------------------- pipeline
@@ -56,14 +57,16 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
                  out_dir: str | Path | None = None, threaded: bool = False, annotate: bool = True,
                  eval_config: EvalConfig = EvalConfig(), write_frames: bool = True,
                  preload_bytes: int = PRELOAD_BYTES, gps_speed: bool = False,
-                 cache: FrameCache | None = None) -> dict:
+                 cache: FrameCache | None = None, detections: DetectionMemo | None = None) -> dict:
     """Simulate, render, run the pipeline and score ``scenario``; returns the metrics dict (NaN kept).
 
     ``n_frames`` defaults to the scenario's duration x fps. With ``out_dir`` the files of
     :mod:`harness.run_outputs` are written atomically. ``gps_speed``: a risk
     stage that takes the ego speed gets the true one on frames without an estimate.
     ``cache``: frames and truth come from this :class:`~harness.frame_cache.FrameCache`
-    (rendered and stored on a miss); the outputs are identical either way.
+    (rendered and stored on a miss); the outputs are identical either way. ``detections``: the
+    detector's results are reused from (and kept in) this memo when an earlier run fed the same
+    detector the same images (:mod:`harness.sweep.detection_memo`); identical outputs too.
     """
     cfg = pipeline_config if isinstance(pipeline_config, PipelineConfig) else \
         PipelineConfig.model_validate(pipeline_config)
@@ -71,6 +74,7 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
     camera = scenario.camera.model()
 
     pipeline = Pipeline.from_config(cfg, camera)     # bad component names / model files fail before any output
+    replay = detections.attach(pipeline, cfg.detector, camera) if detections is not None else None
     true_speeds: dict[float, float] = {}
     if gps_speed and uses(pipeline.risk, "ego_speed"):
         pipeline.risk = GpsFallbackRisk(pipeline.risk, true_speeds)
@@ -90,6 +94,8 @@ def run_scenario(scenario: Scenario, pipeline_config: PipelineConfig | Mapping, 
             outputs.annotate(image, res, truth, eval_config.warning_threshold_s)
 
         results, wall = run_pipeline(pipeline, feed.frames(), preload, threaded, annotate_result)
+        if replay is not None:
+            wall = replay.restore_timings(results, wall)
         score = score_run([feed.truths[r.index] for r in results], results, cfg, pipeline, camera, eval_config,
                           wall, run_info, gps_speed)
         if outputs.dir:

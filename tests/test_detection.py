@@ -145,6 +145,21 @@ def test_centernet_wrong_output_shape_is_user_error(tmp_path):
         CenterNetDetector(path)
 
 
+def test_sessions_are_shared_until_the_file_changes(tmp_path):
+    """Detectors on the same file share one onnxruntime session; a rewritten file is loaded afresh."""
+    h, w = 48, 80
+    hm, lt = np.zeros((1, 1, h, w), np.float32), np.zeros((1, 4, h, w), np.float32)
+    path = constant_model(tmp_path / "cn.onnx", (1, 3, 192, 320), {"heatmap": hm, "ltrb": lt}, "image")
+    a, b = CenterNetDetector(path), CenterNetDetector(path)
+    assert a.session is b.session
+    assert CenterNetDetector(path, intra_op_num_threads=2).session is not a.session
+    hm[0, 0, 10, 20] = 0.9
+    constant_model(tmp_path / "new.onnx", (1, 3, 192, 320), {"heatmap": hm, "ltrb": lt + 8}, "image").replace(path)
+    c = CenterNetDetector(path)
+    assert c.session is not a.session
+    assert len(c.detect(np.zeros((360, 640, 3), np.uint8))) == 1 and a.detect(np.zeros((360, 640, 3), np.uint8)) == []
+
+
 # -------------------------------------------------------------------- AP
 def test_average_precision_hand_example():
     sys.path.insert(0, str(ROOT))

@@ -29,6 +29,19 @@ RUN_JSON = "run.json"
 ERROR_JSON = "error.json"
 METRICS_JSON = "metrics.json"
 
+_detections = None    # this process's DetectionMemo (harness.sweep.detection_memo), made by the first run
+
+
+def detection_memo():
+    """This process's :class:`~harness.sweep.detection_memo.DetectionMemo`: runs that feed the same detector the
+    same frames (the variants of one scenario instance) compute its detections once."""
+    global _detections
+    if _detections is None:
+        from harness.sweep.detection_memo import DetectionMemo
+
+        _detections = DetectionMemo()
+    return _detections
+
 
 @dataclass(frozen=True)
 class RunOutcome:
@@ -80,7 +93,8 @@ def run_into(task: RunTask, out: Path) -> RunOutcome:
             with faults.writing(task.id):
                 hrun.run_scenario(scenario, task.pipeline, n_frames=n, out_dir=out, annotate=task.annotate,
                                   write_frames=False,
-                                  eval_config=EvalConfig(warning_threshold_s=task.warning_threshold_s), **extra)
+                                  eval_config=EvalConfig(warning_threshold_s=task.warning_threshold_s),
+                                  detections=detection_memo(), **extra)
             if not (out / METRICS_JSON).is_file():
                 raise RuntimeError("the run finished without writing metrics.json")
             faults.before_commit(task.id)
