@@ -1,17 +1,16 @@
-"""Image expansion rate of tracked boxes: ``d ln(box height) / dt`` (1/s), the looming cue.
+"""Image expansion rate of tracked boxes: ``d ln(box width) / dt`` (1/s), the looming cue.
 
-A vehicle's box height is ``H f / Z`` (``H`` its height, ``Z`` its depth), so the rate of change
-of its logarithm is ``-dZ/dt / Z``: closing speed over distance, the inverse of the time to
-contact at constant velocity. It needs neither the ground plane nor the horizon nor the
-vehicle's size, only the box's top and bottom edges, so it is an independent check on the
-distance filter's closing speed (a far box whose bottom edge jitters by a pixel reads as tens of
-m/s of closing speed, but its height does not grow). The box height, not its width, because a
-box cut by a side border keeps its height.
+A vehicle's box width is ``W f / Z`` (``W`` its visible width, ``Z`` its depth), so the rate of
+change of its logarithm is ``-dZ/dt / Z``: closing speed over distance, the inverse of the time
+to contact at constant velocity. It needs neither the ground plane nor the horizon nor the
+vehicle's size, and it shares no edge with equation 3 (the bottom edge), so it is an independent
+check on the distance filter's closing speed: a far box whose bottom edge steps down by 2 px
+reads as 10-30 m/s of closing speed, and its height grows with it, but its width does not.
 
-Per track a constant-velocity Kalman filter on ``ln h`` (state: log height, rate), measurement
-noise from ``pixel_std`` on each of the two edges; a box cut by the top or bottom border, a
-coasting box or one under 2 px gives no measurement (the filter predicts); the caller restarts a
-track's filter when its box moved to another vehicle (the distance filter's restart).
+Per track a constant-velocity Kalman filter on ``ln w`` (state: log width, rate), measurement
+noise from ``pixel_std`` on each of the two side edges; a box cut by a side border, a coasting
+box or one under 2 px gives no measurement (the filter predicts); the caller restarts a track's
+filter when its box moved to another vehicle (the distance filter's restart).
 """
 
 from __future__ import annotations
@@ -27,16 +26,14 @@ class ExpansionFilter:
     """``update(ids, boxes, valid, t) -> (rate, rate_std)`` per box (1/s; NaN before a first measurement).
 
     Parameters:
-        pixel_std: one-sigma (px) of each of the box's top and bottom edges (1 px: a detector's box
-            top jumps by several px from frame to frame on trucks, which a smaller value reads as a
-            sudden change of scale).
+        pixel_std: one-sigma (px) of each of the box's side edges.
         process_std: white change of the rate (1/s^2): the rate of a vehicle met at constant speed
             grows as ``rate^2`` (0.25 /s^2 at 2 s to contact, 1 at 1 s).
         init_rate_std: prior one-sigma of the rate (1/s) at a track's first measurement.
         forget_s: a track unseen for this long (s) is forgotten.
     """
 
-    def __init__(self, pixel_std: float = 1.0, process_std: float = 1.0, init_rate_std: float = 1.0,
+    def __init__(self, pixel_std: float = 0.5, process_std: float = 1.0, init_rate_std: float = 1.0,
                  forget_s: float = 1.0) -> None:
         for name, v in (("pixel_std", pixel_std), ("process_std", process_std), ("init_rate_std", init_rate_std),
                         ("forget_s", forget_s)):
@@ -55,7 +52,7 @@ class ExpansionFilter:
                restart: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Rates and one-sigmas (1/s) of the (M, 4) ``boxes`` of tracks ``ids`` at frame time ``t`` (s).
 
-        ``valid`` (M,): the box's height is a measurement (not cut, not coasting); ``restart`` (M,):
+        ``valid`` (M,): the box's width is a measurement (not cut, not coasting); ``restart`` (M,):
         start these tracks afresh (a new sighting).
         """
         for tid in [k for k, (_, _, tk) in self._state.items() if t - tk > self.forget_s]:
@@ -64,7 +61,7 @@ class ExpansionFilter:
         rate, std = np.full(m, np.nan), np.full(m, np.nan)
         if m == 0:
             return rate, std
-        h = np.asarray(boxes, dtype=float)[:, 3] - np.asarray(boxes, dtype=float)[:, 1]
+        h = np.asarray(boxes, dtype=float)[:, 2] - np.asarray(boxes, dtype=float)[:, 0]   # width, px
         valid = np.asarray(valid, dtype=bool) & np.isfinite(h) & (h >= 2.0)
         known = np.array([i in self._state for i in ids])
         x, P = np.zeros((m, 2)), np.zeros((m, 2, 2))

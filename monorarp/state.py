@@ -33,6 +33,11 @@ class StateEstimator:
         motion: Kalman motion model, ``"ca"`` (constant acceleration, default) or ``"cv"``.
         process_std: Kalman process noise: jerk std (m/s^3) for ``"ca"``, acceleration std (m/s^2) for ``"cv"``.
         pixel_std: Kalman measurement noise, box-edge std (px).
+        max_unmeasured_s: a track whose box has given no distance for longer than this (s; its
+            contact line out of view at a side border) is no longer output (one cut by the
+            bottom border is: its distance is clamped, see :meth:`_kalman`).
+        min_vehicle_width_m, near_border_frac: a box near the side border narrower than this
+            width at its distance is taken as cut by the border (:meth:`border_cut_boxes`; 0: never).
         pixel_std_per_height: box-edge std per px of box height, added to ``pixel_std`` in
             quadrature: a near vehicle's big box has fuzzier edges (its bottom edge flips between
             the bumper and the tyres' contact by several px), and a frame larger than the
@@ -88,7 +93,8 @@ class StateEstimator:
                  bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
                  bias_tau_s: float = 1.0, offset_learn_margin_px: float | None = None,
                  max_inward_offset_m: float | None = 0.3, expansion_process_std: float = 1.0,
-                 pixel_std_per_height: float = 0.0) -> None:
+                 pixel_std_per_height: float = 0.01, max_unmeasured_s: float = 0.5,
+                 min_vehicle_width_m: float = 1.4, near_border_frac: float = 0.05) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -122,6 +128,13 @@ class StateEstimator:
         if not (np.isfinite(pixel_std_per_height) and pixel_std_per_height >= 0):
             raise ValueError(f"pixel_std_per_height must be >= 0, got {pixel_std_per_height}")
         self.pixel_std_per_height = float(pixel_std_per_height)
+        if not (max_unmeasured_s >= 0):
+            raise ValueError(f"max_unmeasured_s must be >= 0, got {max_unmeasured_s}")
+        self.max_unmeasured_s = float(max_unmeasured_s)
+        for name, val in (("min_vehicle_width_m", min_vehicle_width_m), ("near_border_frac", near_border_frac)):
+            if not (np.isfinite(val) and val >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {val}")
+        self.min_vehicle_width_m, self.near_border_frac = float(min_vehicle_width_m), float(near_border_frac)
         self.robust_sigmas = None if robust_sigmas is None else float(robust_sigmas)
         self.bias_tau_s = float(bias_tau_s)
         if bias_pixel_std is None:
@@ -155,6 +168,7 @@ class StateEstimator:
         self._coast: dict[int, int] = {}
         self._near_offset: dict[int, float] = {}   # per track: far-edge minus near-edge lateral reading (m)
         self._born: dict[int, float] = {}          # per track: frame time its filter (re)started (s)
+        self._measured: dict[int, float] = {}      # per track: frame time of its last distance reading (s)
         self._expansion.reset()
 
     def measure(self, boxes: np.ndarray) -> np.ndarray:
@@ -255,6 +269,29 @@ class StateEstimator:
         bad = ~(np.abs(boxes) <= limit).all(axis=1)
         return np.where(bad[:, None], np.nan, boxes)
 
+    def border_cut_boxes(self, boxes: np.ndarray) -> np.ndarray:
+        """(M, 4) boxes (px) with a far edge that stops short of the side border extended to it
+        where the box is too narrow to be a whole vehicle.
+
+        Beside the centre line, within ``near_border_frac`` of the frame width from the border on
+        its far side, a box narrower than ``min_vehicle_width_m`` at its distance (equation 3)
+        cannot hold a whole vehicle: the vehicle runs out of view and the detector's box stops a
+        few detector pixels short of the border (at 1920x1080, 20-30 px). Taken at face value its
+        far edge puts a next-lane car 2 m inside the ego's lane.
+        """
+        if self.border_tol_px is None or self.min_vehicle_width_m <= 0 or len(boxes) == 0:
+            return boxes
+        b = boxes.copy()
+        with np.errstate(invalid="ignore"):
+            d_y = box_distance(self.camera, b, self.contact_offset_m, self.ground_clearance_m, self.border_tol_px)
+            narrow = (b[:, 2] - b[:, 0]) < self.camera.fx * self.min_vehicle_width_m / np.maximum(d_y, 0.1)
+            near = self.near_border_frac * self.camera.width
+            right = (b[:, 0] > self.camera.cx) & (b[:, 2] >= self.camera.width - 0.5 - near) & narrow
+            left = (b[:, 2] < self.camera.cx) & (b[:, 0] <= -0.5 + near) & narrow
+        b[right, 2] = np.maximum(b[right, 2], self.camera.width - 0.5)
+        b[left, 0] = np.minimum(b[left, 0], -0.5)
+        return b
+
     def horizon_gain(self, d_y: np.ndarray) -> np.ndarray:
         """``|d d_y / d row|`` (m/px): distance change per pixel of horizon-row error.
 
@@ -323,12 +360,13 @@ class StateEstimator:
             raise ValueError(f"frame time must be finite, got {t}")
         for tid in [k for k, tk in self._t.items() if t - tk > self.forget_s]:
             self._state.pop(tid), self._t.pop(tid), self._near_offset.pop(tid, None), self._born.pop(tid, None)
+            self._measured.pop(tid, None)
         self._coast = {tr.id: self._coast.get(tr.id, 0) + 1 if tr.coasting else 0 for tr in tracks}
         usable = [tr for tr in tracks if self._coast[tr.id] <= self.max_coast_used]
         if not usable:
             return {}
         ids = [tr.id for tr in usable]
-        boxes = self.plausible_boxes(np.array([tr.box for tr in usable], dtype=float))
+        boxes = self.border_cut_boxes(self.plausible_boxes(np.array([tr.box for tr in usable], dtype=float)))
         d_y, terms = self._terms(ids, boxes)
         coasting = np.array([tr.coasting for tr in usable])
         known = np.array([i in self._state for i in ids])
@@ -339,16 +377,23 @@ class StateEstimator:
         if self.velocity == "kalman":
             cut_bottom = border_flags(self.camera, boxes, self.border_tol_px)[:, 2]
             out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom, boxes[:, 3] - boxes[:, 1])
-            cut_top = boxes[:, 1] <= -0.5 + (self.border_tol_px or 0.0)
+            side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
             restart = np.array([self._born.get(i) == t for i in ids])
-            rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~cut_bottom & ~cut_top, t, restart)
+            rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~side_cut, t, restart)
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
-            side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
             std[:, 1] = self.distance_std(out[:, 1], std[:, 1], horizon_std_px, side_cut)
             if self._ground_std is not None:
                 std[:, 1] = np.hypot(std[:, 1], self._ground_std)
+            # A distance only predicted for longer than max_unmeasured_s (the box gives none: its
+            # contact line is out of view at a side border) is no estimate any more: constant
+            # velocity carries it through the ego. A box cut by the bottom border stays (clamped).
+            for i, has in zip(ids, np.isfinite(d_y) & ~coasting):
+                if has:
+                    self._measured[i] = t
+            stale = np.array([t - self._measured.get(i, t) > self.max_unmeasured_s + 1e-9 for i in ids])
+            ok = ok & ~(stale & ~cut_bottom)
             return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac),
                                      age_s=float(t - self._born[tid]), expansion_rate=_finite_or_none(er),
                                      expansion_rate_std=_finite_or_none(er_std))

@@ -50,8 +50,8 @@ class ForwardCollisionWarning:
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
                  distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = 6.0,
-                 looming_sigmas: float | None = None, looming_factor: float = 2.5,
-                 ego_speed_margin_mps: float | None = None) -> None:
+                 looming_sigmas: float | None = 1.0, looming_factor: float = 2.5,
+                 ego_speed_margin_mps: float | None = 1.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):

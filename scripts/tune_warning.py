@@ -61,9 +61,9 @@ def replay(data: dict, state_kw: dict, warning_kw: dict) -> dict:
     state = registry.build("state", "geometric", dict(state_kw), data["camera"])
     warn = registry.build("warning", "fcw", dict(warning_kw), data["camera"])
     results = []
-    for index, t, tracks in data["frames"]:
+    for (index, t, tracks), truth in zip(data["frames"], data["truths"]):
         states = state.update(tracks, t)
-        w = warn.update(states, None, t)
+        w = warn.update(states, None, t, ego_speed=truth.ego.speed)   # the true speed: the tracks hold no frames
         results.append(FrameResult(index=index, t=t, detections=[], tracks=tracks, states=states,
                                    risk=RiskEstimate(risk=0.0), warning=w))
     return warning_metrics(data["truths"], results, warn.ttc_threshold_s)
