@@ -82,7 +82,7 @@ class StateEstimator:
     uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, camera: CameraModel | dict, velocity: str = "kalman", motion: str = "ca",
-                 process_std: float = 3.0, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,
+                 process_std: float = 4.5, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,
                  contact_offset_m: float = 0.95, ground_clearance_m: float = 0.17, max_coast_used: int = 2,
                  init_vel_std: float = 10.0, init_acc_std: float = 5.0, forget_s: float = 1.0,
                  vehicle_length_m: float = 4.5, border_tol_px: float | str | None = "auto",

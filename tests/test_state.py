@@ -485,3 +485,31 @@ def test_a_short_box_cannot_move_the_near_edge_reading_inwards():
     assert lateral(min_vehicle_width_m=0.0) == pytest.approx(fresh - 0.3, abs=1e-6)
     # by default the short box (127 px: under 1.4 m at its ~9 m) is taken as reaching the border
     assert lateral(max_inward_offset_m=None) == pytest.approx(fresh, abs=0.05)
+
+
+def test_a_distance_not_measured_for_long_is_no_longer_output(level_cam):
+    est = StateEstimator(level_cam, max_unmeasured_s=0.5)
+    for k in range(10):
+        assert 1 in est.update([Track(1, vehicle_box(level_cam, 0.0, 20.0 - 0.5 * k))], k / FPS)
+    above = (300.0, 100.0, 340.0, 150.0)          # above the horizon: no distance, no new track
+    kept = [1 in est.update([Track(1, above)], (10 + k) / FPS) for k in range(20)]
+    assert FPS == 30 and kept == [True] * 15 + [False] * 5     # predicted for 0.5 s, then dropped
+
+
+def test_a_narrow_box_near_the_side_border_is_taken_as_cut(level_cam):
+    est = StateEstimator(level_cam)
+    whole = vehicle_box(level_cam, 3.7, 12.0)
+    # a car mostly out of view on the right: 60 px wide at 12 m (1.4 m there is 65 px), 20 px short of the border
+    short = (560.0, whole[1], 620.0, whole[3])
+    out = est.border_cut_boxes(np.array([whole, short, (100.0, 150.0, 200.0, 200.0)]))
+    np.testing.assert_array_equal(out[0], whole)
+    assert out[1][2] == 639.5 and out[1][0] == short[0]
+    np.testing.assert_array_equal(out[2], (100.0, 150.0, 200.0, 200.0))
+    assert StateEstimator(level_cam, min_vehicle_width_m=0.0).border_cut_boxes(np.array([short]))[0][2] == 620.0
+
+
+def test_border_tolerance_scales_with_the_frame_width():
+    cam = CameraModel.from_fov(1920, 1080, 70.0, 1.6, pitch_rad=math.radians(4.0))
+    assert StateEstimator(cam).border_tol_px == pytest.approx(12.0)
+    assert StateEstimator(cam, border_tol_px=4.0).border_tol_px == 4.0
+    assert StateEstimator(cam, border_tol_px=None).border_tol_px is None

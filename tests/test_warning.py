@@ -141,3 +141,28 @@ def test_lateral_velocity_of_a_young_filter_is_not_trusted_when_asked():
     # an in-lane lead needs no lateral velocity: young or not, it threatens
     lead = ObjectState(2, 0.2, 20.0, 0.0, -10.0, v_x_std=0.1, age_s=0.1)
     assert 2 in fcw(min_lateral_age_s=1.0).threats({2: lead})
+
+
+def test_looming_veto_needs_the_box_to_grow():
+    # 50 m ahead read closing at 20 m/s (TTC ~2.4 s): a threat only if the box's width grows accordingly
+    far = dict(v_x_std=0.1, v_y_std=0.5)
+    w = fcw()
+    assert w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.0, expansion_rate_std=0.05)}) == {}
+    assert 1 in w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.4, expansion_rate_std=0.05)})
+    # a rate within 1 sigma of 1 / (2.5 x 3 s) = 0.133 /s is consistent; none measured: no veto
+    assert 1 in w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)})
+    assert 1 in w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far)})
+    assert fcw(looming_sigmas=None).threats(
+        {1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.0, expansion_rate_std=0.05)})
+
+
+def test_closing_speed_is_capped_at_the_ego_speed():
+    # 80 m ahead read closing at 40 m/s (TTC 1.96 s); the ego drives 24 m/s, so at most 25 m/s: TTC 3.1 s
+    s = {1: ObjectState(1, 0.0, 80.0, 0.0, -40.0, v_x_std=0.1, v_y_std=0.01)}
+    w = fcw()
+    assert 1 in w.threats(s)
+    assert w.threats(s, ego_speed=24.0) == {}
+    assert w.threats(s, ego_speed=30.0) != {}          # 80 - 1.75 m at 31 m/s: 2.5 s
+    assert 1 in fcw(ego_speed_margin_mps=None).threats(s, ego_speed=24.0)
+    out = w.update(s, None, 0.0, ego_speed=24.0)
+    assert not out.active and out.threat_ids == ()

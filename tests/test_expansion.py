@@ -1,0 +1,83 @@
+"""The looming cue (monorarp.expansion): rate of change of the log box width against its closed form."""
+
+import math
+
+import numpy as np
+import pytest
+
+from monorarp.camera import CameraModel
+from monorarp.expansion import ExpansionFilter
+from monorarp.state import StateEstimator
+from monorarp.types import Track
+
+FPS = 15.0
+F_PX = 457.0
+
+
+def box_at(z: float, width_m: float = 1.8, bottom_shift: float = 0.0) -> tuple[float, float, float, float]:
+    """A box of a vehicle ``width_m`` wide at depth ``z`` (m), centred at column 320: width f W / z."""
+    w = F_PX * width_m / z
+    h = F_PX * 1.5 / z
+    return (320 - w / 2, 180 - h / 2, 320 + w / 2, 180 + h / 2 + bottom_shift)
+
+
+def run(zs, ts, noise=0.0, seed=0, **kw):
+    rng = np.random.default_rng(seed)
+    f = ExpansionFilter(**kw)
+    out = []
+    for z, t in zip(zs, ts):
+        b = np.array([box_at(z)]) + rng.normal(0.0, noise, 4) * [1, 0, 1, 0]
+        out.append(f.update([1], b, np.array([True]), t))
+    return out
+
+
+def test_rate_converges_to_closing_speed_over_distance():
+    # closing at 10 m/s from 40 m: d ln w / dt = v / z (the inverse of the constant-velocity TTC)
+    ts = np.arange(30) / FPS
+    zs = 40.0 - 10.0 * ts
+    rate, std = run(zs, ts)[-1]
+    # the rate grows (d/dt (v/z) = (v/z)^2) and a constant-rate filter lags it by a few per cent
+    assert 0.9 * 10.0 / zs[-1] < rate[0] < 10.0 / zs[-1]
+    assert 0 < std[0] < 0.15
+
+
+def test_noise_gives_a_rate_consistent_with_zero():
+    ts = np.arange(45) / FPS
+    rates = [run(np.full(45, 60.0), ts, noise=0.5, seed=s)[-1] for s in range(20)]
+    z = np.array([r[0] / s[0] for r, s in rates])
+    assert np.all(np.abs(z) < 3.5)          # |rate| / sigma: the stated uncertainty covers the noise
+    assert np.std(z) < 2.0
+
+
+def test_a_bottom_edge_step_is_no_expansion():
+    # the box's bottom steps down by 2 px (equation 3 reads ~10 m closer at 60 m); its width does not change
+    f = ExpansionFilter()
+    for k in range(30):
+        b = np.array([box_at(60.0, bottom_shift=2.0 if k >= 15 else 0.0)])
+        rate, std = f.update([1], b, np.array([True]), k / FPS)
+    assert abs(rate[0]) < 1e-9
+
+
+def test_no_measurement_before_the_first_valid_box_and_restart():
+    f = ExpansionFilter(init_rate_std=1.0)
+    rate, std = f.update([1], np.array([box_at(30.0)]), np.array([False]), 0.0)
+    assert math.isnan(rate[0]) and math.isnan(std[0])
+    for k in range(10):
+        f.update([1], np.array([box_at(30.0 - k)]), np.array([True]), k / FPS)
+    rate, std = f.update([1], np.array([box_at(20.0)]), np.array([True]), 10 / FPS, restart=np.array([True]))
+    assert rate[0] == 0.0 and std[0] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("kw", [{"pixel_std": 0}, {"process_std": -1}, {"forget_s": math.nan}])
+def test_bad_settings_are_refused(kw):
+    with pytest.raises(ValueError):
+        ExpansionFilter(**kw)
+
+
+def test_state_estimator_outputs_the_rate_and_none_for_a_side_cut_box():
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, pitch_rad=0.0)
+    est = StateEstimator(cam)
+    for k in range(20):
+        s = est.update([Track(1, box_at(40.0 - 0.5 * k)), Track(2, (600.0, 150.0, 639.5, 200.0))], k / FPS)
+    assert s[1].expansion_rate == pytest.approx(7.5 / (40.0 - 0.5 * 19), rel=0.15)
+    assert s[2].expansion_rate is None
