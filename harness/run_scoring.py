@@ -7,6 +7,7 @@ stage got the ego speed from (estimator, true speed with ``gps_speed``, or its o
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows
@@ -14,7 +15,9 @@ from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, PipelineConfig
 from monorarp.registry import build, uses
+from monorarp.ttc import HORIZON_S
 from monorarp.types import FrameResult, RiskEstimate
+from monorarp.warning import ForwardCollisionWarning
 
 
 @dataclass
@@ -27,10 +30,11 @@ class RunScore:
     results: list[FrameResult]
     eval_config: EvalConfig
     baseline: list[RiskEstimate] | None
+    fcw_risk: list[float] | None = None
 
     def frame_rows(self) -> list[dict]:
         """The rows of ``per_frame.csv`` (:func:`harness.scoring.evaluate.frame_rows`)."""
-        return frame_rows(self.truths, self.results, self.eval_config, self.baseline)
+        return frame_rows(self.truths, self.results, self.eval_config, self.baseline, self.fcw_risk)
 
 
 def score_run(truths: list[FrameTruth], results: list[FrameResult], cfg: PipelineConfig, pipeline: Pipeline,
@@ -43,7 +47,7 @@ def score_run(truths: list[FrameTruth], results: list[FrameResult], cfg: Pipelin
                                 ego_speed_method=None if cfg.ego_speed is None else cfg.ego_speed.name,
                                 fcw_threshold_s=getattr(pipeline.warning, "ttc_threshold_s", None))
     metrics["risk"]["ego_speed_sources"] = ego_speed_sources(results, pipeline, gps_speed)
-    return RunScore(metrics, records, truths, results, eval_config, baseline)
+    return RunScore(metrics, records, truths, results, eval_config, baseline, fcw_ttc_risk(results, pipeline))
 
 
 def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[RiskEstimate] | None:
@@ -52,6 +56,21 @@ def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[R
         return None
     ttc = build("risk", "ttc", camera=camera)
     return [ttc.assess(r.states, r.t) for r in results]
+
+
+def fcw_ttc_risk(results: list[FrameResult], pipeline: Pipeline) -> list[float] | None:
+    """Per frame, 1 / the lowest in-path TTC (1/s; 0: none within 10 s) by the run's own ``fcw`` warning
+    stage's rules (its sigma margins, looming veto, plausibility, ego-speed cap) with its threshold
+    raised to the 10 s horizon: the warning decision as a continuous risk score. None without ``fcw``."""
+    if not isinstance(pipeline.warning, ForwardCollisionWarning):
+        return None
+    stage = copy.copy(pipeline.warning)
+    stage.ttc_threshold_s = HORIZON_S
+    out = []
+    for r in results:
+        threats = stage.threats(r.states, r.ego_speed)
+        out.append(max((1.0 / max(v, 0.1) for v in threats.values()), default=0.0))
+    return out
 
 
 def ego_speed_sources(results: list[FrameResult], pipeline: Pipeline, gps_speed: bool) -> dict[str, int] | None:

@@ -2,7 +2,9 @@
 
 An object threatens when its rectangle reaches the ego's corridor within ``ttc_threshold_s`` at
 constant relative velocity (or acceleration), each motion term counted only beyond its
-uncertainty; implausible motion raises nothing; a threat that persists for ``min_on_s`` starts an
+uncertainty; implausible motion raises nothing, nor does a box that does not grow as the threat
+requires (looming); no vehicle ahead closes faster than the ego drives; a threat that persists for
+``min_on_s`` starts an
 episode that lasts until none has been seen for ``hold_s``. Units: m, m/s, s; ego frame of
 :mod:`monorarp.camera`. The rules in full: docs/warning.md.
 """
@@ -27,7 +29,7 @@ def significant_lateral_velocity(v_x: np.ndarray, v_x_std: np.ndarray, sigmas: f
 
 
 class ForwardCollisionWarning:
-    """``update(states, risk, t) -> WarningState``: the in-path, TTC and hysteresis rules of the module docstring.
+    """``update(states, risk, t, ego_speed=None) -> WarningState``: the rules of the module docstring.
 
     Defaults chosen with ``scripts/tune_warning.py`` on ``scenarios/fcw/tuning.yaml`` (speeds,
     gaps and seeds in no scorecard suite nor CI): threshold 3.0 s (the strictest standard
@@ -37,14 +39,15 @@ class ForwardCollisionWarning:
     has a 90th percentile of 2.3-2.5 on the tuning set's nominal runs, against 1.64 for a
     calibrated Gaussian); ``accel_sigmas`` 2 (the braking lead's first warning 2.18 s -> 2.83-3.44 s,
     at the cost of more false alarms: 4 -> 6 in 3 min of nominal traffic). ``None``: no
-    acceleration term.
+    acceleration term. ``longitudinal_sigmas`` 0.5, ``looming_sigmas`` 1, ``ego_speed_margin_mps``
+    1: the third round (docs/scorecard.md, Tuning; 32 min of nominal traffic, 16 conflicts).
     """
 
     uses_camera = True   # the registry passes the run's camera
 
     def __init__(self, ttc_threshold_s: float = DEFAULT_TTC_THRESHOLD_S, min_on_s: float = 0.1,
                  hold_s: float = 1.0, lateral_sigmas: float = 3.0, lateral_velocity_std_mps: float = 0.5,
-                 longitudinal_sigmas: float = 1.0, max_lateral_speed_mps: float = 3.0,
+                 longitudinal_sigmas: float = 0.5, max_lateral_speed_mps: float = 3.0,
                  max_closing_speed_mps: float = 45.0, accel_sigmas: float | None = 2.0,
                  corridor_margin_m: float = 0.0, min_lateral_age_s: float = 0.0, other_width_m: float = 1.8, other_length_m: float = 4.5,
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,

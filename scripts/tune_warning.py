@@ -33,9 +33,15 @@ from monorarp.pipeline import Pipeline, PipelineConfig
 from monorarp.types import FrameResult, RiskEstimate
 
 
+def tracks_key(task) -> str:
+    """What the cached tracks depend on: the scenario, the frames, the detector and the tracker."""
+    made_by = {k: task.pipeline.get(k) for k in ("detector", "tracker")}
+    return hashlib.sha256(json.dumps([task.scenario, made_by, task.frames], sort_keys=True).encode()).hexdigest()
+
+
 def cached_tracks(task, cache: Path) -> dict:
     """{camera, frames: [(index, t, tracks)], truths} of one run, computed once."""
-    key = hashlib.sha256(json.dumps([task.scenario, task.pipeline, task.frames], sort_keys=True).encode()).hexdigest()
+    key = tracks_key(task)
     path = cache / f"{task.id}-{key[:12]}.pkl"
     if path.is_file():
         return pickle.loads(path.read_bytes())

@@ -31,7 +31,7 @@ from harness.sweep.orchestrate import clean_leftovers, finished, prepare_out_dir
 from harness.sweep.spec import Variant, run_mapping
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
 from monorarp.readers import read_json_or_none
-from monorarp.config_options import WARNING_THRESHOLD_S
+from monorarp.config_options import CLI_EGO_SPEED, WARNING_THRESHOLD_S
 from monorarp.pipeline import PipelineConfig
 
 PROTOCOL_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "fcw"
@@ -66,17 +66,18 @@ def protocol_paths(opts: ScorecardOptions) -> list[Path]:
 
 
 def variant_for(trial: Trial, opts: ScorecardOptions) -> Variant:
-    """The pipeline of a trial: the chosen detector and tracker, the warning stage; in the risk suite the
-    Monte Carlo risk (its ego model = constant speed when the scenario's ego is known to hold its speed,
-    the ego speed from the lane-marking estimator) with the 1/TTC risk scored on the same states."""
+    """The pipeline of a trial: the chosen detector and tracker, the command line's ego-speed stage (the
+    warning stage caps closing speeds with it), the warning stage; in the risk suite the Monte Carlo risk
+    (its ego model = constant speed when the scenario's ego is known to hold its speed, the ego speed
+    from the lane-marking estimator) with the 1/TTC risks scored on the same states."""
     kw = dict(detector=opts.detector, detector_kwargs=dict(opts.detector_kwargs), tracker=opts.tracker,
-              warning_kwargs=dict(opts.warning_kwargs))
+              warning_kwargs=dict(opts.warning_kwargs), ego_speed=CLI_EGO_SPEED)
     if trial.suite == "risk":
         ego = trial.scenario.get("ego", {})
         constant = ego.get("behaviour") == "constant_speed" and not any(
             e.get("vehicle") == "ego" for e in trial.scenario.get("events", []))
         risk_kwargs = {"n_rollouts": 200, "ego_model": "constant_speed" if constant else "idm"}
-        kw.update(risk="monte_carlo", ego_speed="ground_track", risk_kwargs=risk_kwargs)
+        kw.update(risk="monte_carlo", risk_kwargs=risk_kwargs)
     return Variant(name="scorecard", **kw)
 
 
@@ -165,7 +166,7 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
 
 # ----------------------------------------------------------------------------- scoring
 def _frame_arrays(run_dir: Path) -> dict[str, np.ndarray] | None:
-    """``per_frame.csv`` -> t, event, and the risk scores (1/TTC; Monte Carlo where the run has it)."""
+    """``per_frame.csv`` -> t, event, and the risk scores (1/TTC, the fcw stage's 1/TTC; Monte Carlo where the run has it)."""
     try:
         with open(run_dir / "per_frame.csv", newline="") as f:
             rows = list(csv.DictReader(f))
@@ -176,6 +177,8 @@ def _frame_arrays(run_dir: Path) -> dict[str, np.ndarray] | None:
         return np.array([float(r[name]) if r[name] not in ("", None) else np.nan for r in rows], dtype=float)
 
     out = {"t": col("t"), "event": col("risk_event") == 1}
+    if rows and rows[0].get("fcw_ttc_risk") not in ("", None):
+        out["fcw_ttc"] = col("fcw_ttc_risk")
     mc = bool(rows) and rows[0]["risk_kind"] == "probability"
     if mc:
         out["monte_carlo"], out["inverse_ttc"] = col("risk"), col("baseline_ttc_risk")
