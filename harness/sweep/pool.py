@@ -20,6 +20,7 @@ temporary directory the dead worker left behind is removed when the sweep ends
 from __future__ import annotations
 
 import ctypes
+import faulthandler
 import multiprocessing
 import os
 import signal
@@ -49,7 +50,12 @@ def _die_with_parent(parent_pid: int) -> None:
 
 
 def _worker_main(conn: Connection, threads: int, parent_pid: int) -> None:
-    """A worker process: run each task received, send its outcome back; ``None`` ends it."""
+    """A worker process: run each task received, send its outcome back; ``None`` ends it.
+
+    A native crash (SIGSEGV, SIGABRT, ...) prints every thread's Python stack to stderr first
+    (faulthandler), so the run recorded as "worker process died" can be traced.
+    """
+    faulthandler.enable()
     _die_with_parent(parent_pid)
     from harness.sweep.executors import _init_process
 
