@@ -264,4 +264,4 @@ def test_cli_vibration_outside_the_image_exits_2(tmp_path, capsys):
 def test_cli_unknown_horizon_exits_2(tmp_path, capsys):
     assert main(["run", str(_scenario_file(tmp_path, 0.5)), "--horizon", "gyro"]) == 2
     err = capsys.readouterr().err
-    assert len(err.splitlines()) == 1 and "--horizon: unknown horizon 'gyro'; available: calibrated, online" in err
+    assert len(err.splitlines()) == 1 and "--horizon: unknown horizon 'gyro'; available: calibrated, lane_width, online" in err
