@@ -21,6 +21,7 @@ from harness.scenario import ScenarioError, parse_scenario
 from harness.simulation.placement import EGO_START_X_M, road_plan
 from harness.world import VehicleState, WorldState
 from monorarp.cli import main
+from silhouette import assert_silhouette, rot_ego_to_cv
 
 
 # ------------------------------------------------------------------ the plan's maths
@@ -193,12 +194,6 @@ def test_truth_ttc_on_a_curve_follows_the_lanes():
     assert straight.ttc == curved.ttc
 
 
-def _rot_ego_to_cv(pitch: float) -> np.ndarray:
-    level = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-    r_pitch, _ = cv2.Rodrigues(np.array([pitch, 0.0, 0.0]))
-    return r_pitch @ level
-
-
 @pytest.mark.parametrize("ego_offset, car_u, lane", [(-30.0, 40.0, 0), (60.0, 100.0, 2)])   # ego before / on it
 def test_rendered_vehicle_on_a_curve_where_cv2_projects_it(ego_offset, car_u, lane):
     """A car on a 150 m-radius left arc: its id-pass silhouette's extremes against its mesh placed by
@@ -228,18 +223,8 @@ def test_rendered_vehicle_on_a_curve_where_cv2_projects_it(ego_offset, car_u, la
     base_c, yaw_c = pose(car.x, car.y)
     r_car, _ = cv2.Rodrigues(np.array([0.0, 0.0, yaw_c]))
     tm = vehicle_trimesh(car.length, car.width, (0, 0, 0))
-    body = (tm.vertices @ r_car.T + base_c - cam_w) @ r_ego       # ego body: X ahead, Y left, Z up
-    p_ego = np.stack([-body[:, 1], body[:, 0], body[:, 2]], axis=1)
-    rvec, _ = cv2.Rodrigues(_rot_ego_to_cv(camera.pitch_rad))
-    uv = cv2.projectPoints(p_ego.reshape(-1, 1, 3), rvec, np.zeros(3), camera.K, None)[0].reshape(-1, 2)
-    rows, cols = np.nonzero(f.id_mask == 1)
-    assert rows.size > 50
-    for lo, got in ((uv[:, 0].min(), cols.min()), (uv[:, 1].min(), rows.min())):
-        assert math.ceil(lo) <= got <= math.ceil(lo) + 1, (lo, got)
-    for hi, got in ((uv[:, 0].max(), cols.max()), (uv[:, 1].max(), rows.max())):
-        assert math.floor(hi) - 1 <= got <= math.floor(hi), (hi, got)
     obj = truth.objects[0]
-    assert obj.box == (cols.min() - 0.5, rows.min() - 0.5, cols.max() + 0.5, rows.max() + 0.5)
+    p_ego = assert_silhouette(camera, tm.vertices @ r_car.T + base_c, cam_w, r_ego, f, obj)
     assert obj.d_long == pytest.approx(p_ego[:, 1].min(), abs=0.05)
     if ego_offset > 0:
         return
@@ -249,6 +234,7 @@ def test_rendered_vehicle_on_a_curve_where_cv2_projects_it(ego_offset, car_u, la
     edge = -LANE_W / 2 - s.road.shoulder_width_m
     pts = np.array([pose(x_start + u, edge)[0] for u in np.linspace(-20.0, 50.0, 1401)])
     b = (pts - cam_w) @ r_ego
+    rvec, _ = cv2.Rodrigues(rot_ego_to_cv(camera.pitch_rad))
     uv = cv2.projectPoints(np.stack([-b[:, 1], b[:, 0], b[:, 2]], 1).reshape(-1, 1, 3), rvec, np.zeros(3),
                            camera.K, None)[0].reshape(-1, 2)
     rows = np.arange(math.ceil(uv[:, 1].min()), math.floor(uv[:, 1].max()) + 1)
