@@ -375,9 +375,9 @@ class StateEstimator:
         new_ok = np.isfinite(d_y) & np.isfinite(lateral_from_terms(terms, d_y))
         ok = known | new_ok
         if self.velocity == "kalman":
-            cut_bottom = border_flags(self.camera, boxes, self.border_tol_px)[:, 2]
+            flags = border_flags(self.camera, boxes, self.border_tol_px)
+            cut_bottom, side_cut = flags[:, 2], flags[:, :2].any(axis=1)
             out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom, boxes[:, 3] - boxes[:, 1])
-            side_cut = border_flags(self.camera, boxes, self.border_tol_px)[:, :2].any(axis=1)
             restart = np.array([self._born.get(i) == t for i in ids])
             rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~side_cut, t, restart)
             # A box cut by a side border gives its lateral position from the near-edge model (an
