@@ -53,7 +53,7 @@ class ForwardCollisionWarning:
                  ego_width_m: float = 1.8, ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
                  distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = 6.0,
-                 looming_sigmas: float | None = 1.0, looming_factor: float = 2.5,
+                 looming_sigmas: float | None = 1.0, looming_factor: float = 2.5, looming_share: float = 0.0,
                  ego_speed_margin_mps: float | None = 1.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
@@ -75,6 +75,9 @@ class ForwardCollisionWarning:
             raise ValueError(f"looming_factor must be positive, got {looming_factor}")
         self.looming_sigmas = None if looming_sigmas is None else float(looming_sigmas)
         self.looming_factor = float(looming_factor)
+        if not (np.isfinite(looming_share) and 0 <= looming_share <= 1):
+            raise ValueError(f"looming_share must be in [0, 1], got {looming_share}")
+        self.looming_share = float(looming_share)
         if ego_speed_margin_mps is not None and not (np.isfinite(ego_speed_margin_mps) and ego_speed_margin_mps >= 0):
             raise ValueError(f"ego_speed_margin_mps must be >= 0 or None, got {ego_speed_margin_mps}")
         self.ego_speed_margin_mps = None if ego_speed_margin_mps is None else float(ego_speed_margin_mps)
@@ -137,9 +140,11 @@ class ForwardCollisionWarning:
             raw_v_x = np.array([o.v_x for o in s], dtype=float)
             plausible &= ~(np.abs(raw_v_x) > self.max_raw_lateral_speed_mps)
         if self.looming_sigmas is not None:
-            rate = np.array([np.inf if o.expansion_rate is None else o.expansion_rate for o in s], dtype=float)
+            rate = np.array([np.nan if o.expansion_rate is None else o.expansion_rate for o in s], dtype=float)
             rate_std = np.array([0.0 if o.expansion_rate_std is None else o.expansion_rate_std for o in s])
-            plausible &= rate + self.looming_sigmas * rate_std >= 1.0 / (self.looming_factor * self.ttc_threshold_s)
+            need = np.maximum(1.0 / (self.looming_factor * self.ttc_threshold_s),
+                              self.looming_share * np.maximum(-v_y, 0.0) / np.maximum(d_y, 1.0))
+            plausible &= ~(rate + self.looming_sigmas * rate_std < need)   # no rate yet: no veto
         a_y = None
         if self.accel_sigmas is not None:
             a = np.array([0.0 if o.a_y is None else o.a_y for o in s], dtype=float)
