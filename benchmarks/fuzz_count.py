@@ -3,6 +3,7 @@
     python benchmarks/fuzz_count.py                   # 10,000 examples per test, fresh random examples
     python benchmarks/fuzz_count.py --examples 500 --jobs 2
     python benchmarks/fuzz_count.py --only inputs     # or: estimators
+    python benchmarks/fuzz_count.py -k check_ -k video_file   # only tests whose name holds one of these
 
 Every test of ``tests/test_fuzz_inputs.py`` and ``tests/test_fuzz_estimators.py`` runs in its
 own pytest process (``--jobs`` at a time) with ``MONORARP_FUZZ_EXAMPLES`` examples and
@@ -57,10 +58,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--examples", type=int, default=10_000, help="hypothesis examples per test (default 10000)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="tests run at once (default: cores)")
     ap.add_argument("--only", choices=sorted(FILES), default=None, help="one of the two test files")
-    ap.add_argument("-k", default=None, help="only tests whose name contains this")
+    ap.add_argument("-k", action="append", default=None,
+                    help="only tests whose name contains this (repeat: any of these)")
     args = ap.parse_args(argv)
     files = [FILES[args.only]] if args.only else list(FILES.values())
-    nodes = [n for n in collect(files) if args.k is None or args.k in n]
+    nodes = [n for n in collect(files) if args.k is None or any(k in n for k in args.k)]
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(args.jobs) as pool:
         results = list(pool.map(lambda n: run_one(n, args.examples, Path(tmp)), nodes))

@@ -14,6 +14,11 @@ A generated :class:`Doc` is either file content (bytes) or a file-system oddity
   recursive aliases, YAML tags (``!!python/object``, ``!!binary``, ``!!set``,
   ``!!bool maybe``, ...), several documents in one file, binary data with real
   magic numbers, files larger than the readers' limits.
+
+A reader that accepts almost any JSON (``metrics.json``, ``summary.json``, ``run.json``)
+gets ``documents(..., breaks=...)``: the same kinds of defects, each made invalid by
+construction (:func:`broken_json`, the ``strict_json`` corruptions, edge texts that are
+not JSON), so that nearly every generated document is one the reader must refuse.
 """
 
 from __future__ import annotations
@@ -22,6 +27,8 @@ import copy
 import json
 import math
 import os
+import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,7 +36,7 @@ from typing import Any
 import yaml
 from hypothesis import strategies as st
 
-from monorarp.readers import MAX_CONFIG_BYTES
+from monorarp.readers import MAX_CONFIG_BYTES, MAX_DEPTH
 
 
 @dataclass(frozen=True)
@@ -179,15 +186,38 @@ def serialised(docs: st.SearchStrategy, fmt: str) -> st.SearchStrategy:
 
 
 # ------------------------------------------------------------------- corruption
+JSON_WHITESPACE = b" \t\r\n"
+
+
+def _json_tokens(text: bytes) -> tuple[list[int], list[tuple[int, int]]]:
+    """Positions of the structural bytes (``{}[]:,`` and string quotes) and the (start, end) of every string
+    token of the JSON text ``text``."""
+    structural, strings = [], []
+    for m in re.finditer(rb'"(?:[^"\\]|\\.)*"|[{}\[\]:,]', text):
+        if m.group().startswith(b'"'):
+            structural += [m.start(), m.end() - 1]
+            strings.append((m.start(), m.end()))
+        else:
+            structural.append(m.start())
+    return structural, strings
+
+
 @st.composite
-def corrupted(draw, valid: bytes) -> Doc:
-    """``valid`` with its bytes damaged."""
+def corrupted(draw, valid: bytes, strict_json: bool = False) -> Doc:
+    """``valid`` with its bytes damaged. ``strict_json`` (``valid`` is a JSON object, 2-space indented): every
+    damage makes it unreadable as JSON -- bytes inserted between a key and its colon, a structural byte changed,
+    a BOM or line break JSON does not know, a raw tab inside a string; none that JSON tolerates."""
     data = bytearray(valid)
     op = draw(st.sampled_from(["truncate", "insert", "flip", "utf16", "latin1", "bom", "nul", "surrogate",
                                "crlf", "tabs", "prefix_binary"]))
     pos = draw(st.integers(0, max(len(data) - 1, 0)))
+    structural, strings = _json_tokens(valid) if strict_json else ([], [])
     if op == "truncate":
         data = data[:pos]
+    elif op == "insert" and strict_json:   # "key"<bytes>: -- anything but whitespace or ':' there is no JSON
+        keys = [end for _, end in strings if valid[end:].lstrip(JSON_WHITESPACE).startswith(b":")]
+        at = draw(st.sampled_from(keys))
+        data[at:at] = draw(st.binary(min_size=1, max_size=16).filter(lambda b: b[:1] not in JSON_WHITESPACE + b":"))
     elif op == "insert":
         data[pos:pos] = draw(st.binary(min_size=1, max_size=16))
     elif op == "flip":
@@ -195,6 +225,17 @@ def corrupted(draw, valid: bytes) -> Doc:
             i = draw(st.integers(0, max(len(data) - 1, 0)))
             if data:
                 data[i] = draw(st.integers(0, 255))
+        if strict_json:   # and one structural byte replaced by another value (last, so that none restores it)
+            i = draw(st.sampled_from(structural))
+            data[i] = (valid[i] + draw(st.integers(1, 255))) % 256
+    elif op == "bom" and strict_json:   # the reader drops one UTF-8 BOM (valid), not these
+        data[0:0] = draw(st.sampled_from([b"\xff\xfe", b"\xfe\xff", b"\xef\xbb\xbf\xef\xbb\xbf"]))
+    elif op == "crlf" and strict_json:  # line breaks that are not JSON whitespace
+        data = bytearray(valid.replace(b"\n", draw(st.sampled_from([b"\x85", "\u2028".encode(), b"\x0b", b"\x0c"]))))
+    elif op == "tabs" and strict_json:  # JSON strings hold no raw control characters
+        start, end = draw(st.sampled_from(strings))
+        at = draw(st.integers(start + 1, end - 1))
+        data[at:at] = draw(st.sampled_from([b"\t", b"\r", b"\n", b"\x1b"]))
     elif op == "utf16":
         data = bytearray(valid.decode("utf-8").encode(draw(st.sampled_from(["utf-16", "utf-16-le", "utf-32"]))))
     elif op == "latin1":
@@ -317,20 +358,95 @@ def fs_oddities() -> st.SearchStrategy:
     return st.sampled_from(FS_KINDS).map(lambda k: Doc(k, b"", k))
 
 
+# ------------------------------------------------------------- JSON, invalid
+#: Values that are no JSON in any place (Python's ``json`` reads NaN, Infinity and 1e999, so those are not here):
+#: Python and JavaScript literals, other number syntaxes, an integer beyond ``json``'s 4,300 digits, broken
+#: strings and containers, comments.
+NOT_JSON = ["nan", "inf", "-inf", "None", "True", "False", "undefined", "'x'", "0x1F", "+1", "01", ".5", "1.",
+            "1e", "--1", "9" * 5000, '"unterminated', '"tab\there"', '"line\nbreak"', '"bad \\x escape"', "x",
+            "[1,]", '{"a": 1,}', "{'a': 1}", "{a: 1}", "[1 2]", '{"a" 1}', "/* c */ 1", "// c\n1", "[", "}"]
+_HOLE = "\x00not-json\x00"     # a placeholder string, replaced by a NOT_JSON token once serialised
+
+
+def _put(doc: Any, path: tuple, value: Any) -> Any:
+    """``doc`` with the value at ``path`` replaced (the root when ``path`` is empty)."""
+    if not path:
+        return value
+    _get(doc, path[:-1])[path[-1]] = value
+    return doc
+
+
+#: A break of a reader's schema: value -> strategy of values the reader refuses.
+Break = Callable[[Any], st.SearchStrategy]
+
+
+@st.composite
+def broken_json(draw, values: st.SearchStrategy, breaks: tuple[Break, ...]) -> Doc:
+    """A value of ``values`` made invalid by construction, as JSON: one of ``breaks`` of the reader's schema
+    (none for a reader that takes any JSON), one value replaced by a token that is no JSON
+    (:data:`NOT_JSON`), or one value nested deeper than ``MAX_DEPTH``."""
+    value = copy.deepcopy(draw(values))
+    how = draw(st.sampled_from(["not_json", "deep"] + ["schema"] * bool(breaks)))
+    indent = draw(st.sampled_from([None, 2]))
+    if how == "schema":
+        return Doc("bytes", to_json(draw(draw(st.sampled_from(breaks))(value)), indent), "json:schema")
+    path = draw(st.sampled_from(_slots(value)))
+    if how == "deep":
+        return Doc("bytes", to_json(_put(value, path, deep_list(draw(st.integers(MAX_DEPTH + 1, 200)))), indent),
+                   "json:deep")
+    token = draw(st.sampled_from(NOT_JSON))
+    text = to_json(_put(value, path, _HOLE), indent).replace(json.dumps(_HOLE).encode(), token.encode(), 1)
+    return Doc("bytes", text, "json:not_json")
+
+
+def _is_json(text: bytes) -> bool:
+    """Whether ``text`` is JSON as the readers take it (UTF-8, one leading BOM dropped, no NUL)."""
+    try:
+        decoded = text.decode("utf-8").removeprefix("\ufeff")
+        json.loads(decoded)
+    except ValueError:
+        return False
+    return "\x00" not in decoded
+
+
 # ---------------------------------------------------------------------- readers
+def _keys(base: dict) -> list[str]:
+    return sorted({str(k) for p in _slots(base) for k in p if isinstance(k, str)})
+
+
+def plausible_json(base: dict) -> st.SearchStrategy:
+    """Documents that a lenient JSON reader may well accept: mutations of ``base`` (wrong types, missing and
+    extra keys, NaN, ...) as they are, the edge texts that are JSON, file-system oddities."""
+    return st.one_of(serialised(mutated(base, _keys(base)), "json"), serialised(mutated(base, _keys(base)), "json"),
+                     st.sampled_from([t for t in EDGE_TEXTS if _is_json(t)]).map(lambda b: Doc("bytes", b, "edge")),
+                     fs_oddities())
+
+
 def documents(base: dict, fmt: str, limit: int = MAX_CONFIG_BYTES, valid_text: bytes | None = None,
-              with_fs: bool = True) -> st.SearchStrategy:
-    """Malformed documents for a reader whose valid documents look like ``base`` (``fmt`` yaml or json)."""
-    keys = sorted({str(k) for p in _slots(base) for k in p if isinstance(k, str)})
+              with_fs: bool = True, breaks: tuple[Break, ...] | None = None) -> st.SearchStrategy:
+    """Malformed documents for a reader whose valid documents look like ``base`` (``fmt`` yaml or json).
+
+    ``breaks`` (JSON only), for a reader that accepts most JSON: the breaks of its schema (:data:`Break`; an
+    empty tuple when it takes any JSON value). Every branch then yields an invalid document by construction:
+    mutated and arbitrary values through :func:`broken_json`, the ``strict_json`` corruptions, only the edge
+    texts that are no JSON.
+    """
+    keys = _keys(base)
     valid = valid_text if valid_text is not None else (to_yaml(base, None) if fmt == "yaml" else to_json(base, 2))
+    if breaks is None:
+        values = lambda v: serialised(v, fmt)   # noqa: E731
+        edge = EDGE_TEXTS
+    else:
+        values = lambda v: broken_json(v, breaks)   # noqa: E731
+        edge = [t for t in EDGE_TEXTS if not _is_json(t)]
     branches = [
-        serialised(mutated(base, keys), fmt), serialised(mutated(base, keys), fmt),
-        serialised(mutated(base, keys), fmt), serialised(mutated(base, keys), fmt),
-        serialised(json_values(keys), fmt),
-        corrupted(valid), corrupted(valid),
+        values(mutated(base, keys)), values(mutated(base, keys)),
+        values(mutated(base, keys)), values(mutated(base, keys)),
+        values(json_values(keys)),
+        corrupted(valid, strict_json=breaks is not None), corrupted(valid, strict_json=breaks is not None),
         deep_nesting(fmt),
         binary(),
-        st.sampled_from(EDGE_TEXTS).map(lambda b: Doc("bytes", b, "edge")),
+        st.sampled_from(edge).map(lambda b: Doc("bytes", b, "edge")),
         oversized(limit, fmt),
     ]
     if fmt == "yaml":

@@ -11,7 +11,11 @@ traceback (an uncaught exception fails the test), and nothing written.
 
 A generated document that happens to be *valid* is skipped (``assume``) before the
 command is run, so no test ever simulates or renders; each test checks that with
-the loader the command uses.
+the loader the command uses. The readers that accept almost any JSON (``metrics.json``,
+``run.json``, ``summary.json``) and the video files get documents that are invalid by
+construction (``documents(..., breaks=...)``, :func:`_video_bytes`), so that nearly every
+example reaches the command as a malformed document; what such a reader accepts is fuzzed
+apart (:func:`test_check_lenient_results`).
 
 Examples per test: ``MONORARP_FUZZ_EXAMPLES`` (default 60, about 20 s for the file on
 2 cores); ``benchmarks/fuzz_count.py`` runs them with 10,000 and prints the number of
@@ -36,7 +40,7 @@ import yaml
 from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 
-from fuzz_docs import Doc, documents, materialise, to_json
+from fuzz_docs import NOT_JSON, Doc, documents, materialise, plausible_json, scalars, to_json
 from monorarp.cli import main
 from monorarp.errors import UserError
 from monorarp.readers import MAX_JSON_BYTES
@@ -116,6 +120,9 @@ def base(tmp_path_factory):
         writer.write(np.broadcast_to((ramp + 8 * i) % 256, (360, 640, 3)).astype(np.uint8))
     writer.release()
     assert (d / "clip.mp4").stat().st_size > 0
+    # the video faults damage these boxes (_video_bytes); the frames come before them
+    boxes = {kind: off for off, _, kind in mp4_boxes((d / "clip.mp4").read_bytes())}
+    assert set(SAMPLE_TABLE_BOXES) <= set(boxes) and boxes[b"moov"] > boxes[b"mdat"], boxes
     yield d
     if os.environ.get("MONORARP_FUZZ_COUNTS"):
         Path(os.environ["MONORARP_FUZZ_COUNTS"]).write_text(json.dumps(dict(sorted(COUNTS.items())), indent=1))
@@ -305,44 +312,96 @@ def test_check_baseline(base, capsys, doc: Doc, update: bool):
     shutil.rmtree(work)
 
 
-@FUZZ
-@given(doc=documents(METRICS, "json", limit=MAX_JSON_BYTES), which=st.sampled_from(["metrics.json", "run.json"]))
-def test_check_metrics_json(base, capsys, doc: Doc, which: str):
+def _not_an_object(value) -> st.SearchStrategy:
+    """The document a list, a string, a number, ... instead of an object (``check`` reads objects only)."""
+    return st.one_of(st.just([value]), scalars, st.lists(scalars, max_size=3))
+
+
+@st.composite
+def _summary_fault(draw, value):
+    """``value`` (a mutated summary) with one fault ``check`` refuses: no ``runs`` list, a run that is not an
+    object or has no ``id``, a run's ``metrics`` that is neither an object nor empty."""
+    if not isinstance(value, dict):
+        return value                      # refused already
+    runs = value.get("runs")
+    fault = draw(st.sampled_from(["no runs", "runs not a list"] + ["run not an object", "run without id",
+                                  "metrics not an object"] * (isinstance(runs, list) and bool(runs))))
+    if fault == "no runs":
+        value.pop("runs", None)
+    elif fault == "runs not a list":
+        value["runs"] = draw(st.one_of(scalars, st.dictionaries(st.text(max_size=6), scalars, max_size=3)))
+    else:
+        run = draw(st.sampled_from(range(len(runs))))
+        if fault == "run not an object":
+            runs[run] = draw(st.one_of(scalars, st.lists(scalars, max_size=3)))
+        elif isinstance(runs[run], dict) and fault == "run without id":
+            runs[run].pop("id", None)   # (or gone already)
+        elif isinstance(runs[run], dict):    # (a run that is no object is refused already)
+            runs[run]["metrics"] = draw(st.one_of(st.lists(scalars, min_size=1, max_size=3), st.text(min_size=1),
+                                                  st.integers().filter(bool), st.just(True),
+                                                  st.floats().filter(bool)))
+    return value
+
+
+def _check_results(base: Path, capsys, doc: Doc, which: str) -> bool:
+    """``check`` of a results directory whose ``which`` (metrics.json, run.json, summary.json) is ``doc``: one
+    line and exit 2 if the reader refuses it, a table and exit 0/1 if not. Returns whether it was refused."""
     from harness.check import load_results
 
     work = _workdir(base)
-    results = _results_dir(work, run_json=to_json(RUN_JSON, 2))
-    (results / which).unlink()
+    if which == "summary.json":
+        results = work / "sweep"
+        results.mkdir()
+    else:
+        results = _results_dir(work, run_json=to_json(RUN_JSON, 2))
+        (results / which).unlink()
     path = materialise(doc, results, which)
     baseline = work / "baseline.json"
     baseline.write_bytes(to_json(BASELINE, 2))
     malformed = not valid_with(load_results, results)
     note(f"malformed={malformed}")
-    COUNTS[which] += malformed
     before = _tree(work)
     rc, o, e = invoke(["check", str(results), "--baseline", str(baseline)], capsys)
     _check_outcome(rc, o, e, work, before, names_for(path) + names_for(results), malformed)
     shutil.rmtree(work)
+    return malformed
+
+
+# a valid document that slips through is run all the same (accepted: a table), but not counted
+@FUZZ
+@given(doc=documents(METRICS, "json", limit=MAX_JSON_BYTES, breaks=(_not_an_object,)))
+def test_check_metrics_json(base, capsys, doc: Doc):
+    COUNTS["metrics.json"] += _check_results(base, capsys, doc, "metrics.json")
 
 
 @FUZZ
-@given(doc=documents(SUMMARY, "json", limit=MAX_JSON_BYTES))
-def test_check_summary_json(base, capsys, doc: Doc):
-    from harness.check import load_results
+@given(doc=documents(RUN_JSON, "json", limit=MAX_JSON_BYTES, with_fs=False, breaks=()))
+def test_check_run_json(base, capsys, doc: Doc):
+    """``run.json`` is optional and any JSON value (only its ``id`` is used): unreadable JSON is the fault."""
+    COUNTS["run.json"] += _check_results(base, capsys, doc, "run.json")
 
-    work = _workdir(base)
-    results = work / "sweep"
-    results.mkdir()
-    path = materialise(doc, results, "summary.json")
-    baseline = work / "baseline.json"
-    baseline.write_bytes(to_json(BASELINE, 2))
-    malformed = not valid_with(load_results, results)
-    note(f"malformed={malformed}")
-    COUNTS["summary.json"] += malformed
-    before = _tree(work)
-    rc, o, e = invoke(["check", str(results), "--baseline", str(baseline)], capsys)
-    _check_outcome(rc, o, e, work, before, names_for(path) + names_for(results), malformed)
-    shutil.rmtree(work)
+
+@FUZZ
+@given(doc=documents(SUMMARY, "json", limit=MAX_JSON_BYTES, breaks=(_not_an_object, _summary_fault)))
+def test_check_summary_json(base, capsys, doc: Doc):
+    COUNTS["summary.json"] += _check_results(base, capsys, doc, "summary.json")
+
+
+@FUZZ
+@given(which_doc=st.sampled_from([("metrics.json", METRICS), ("run.json", RUN_JSON), ("summary.json", SUMMARY)])
+       .flatmap(lambda wb: st.tuples(st.just(wb[0]), plausible_json(wb[1]))))
+def test_check_lenient_results(base, capsys, which_doc: tuple[str, Doc]):
+    """Wrong types, missing and extra keys, ... that the results readers mostly accept: a table and exit 0/1
+    (a metric that is no number is "changed"), or one line if refused; never a traceback. Not counted."""
+    _check_results(base, capsys, which_doc[1], which_doc[0])
+
+
+def test_not_json_tokens_are_no_json():
+    """The tokens that make a lenient reader's documents invalid are no JSON wherever they stand."""
+    for token in NOT_JSON:
+        for text in (token, f"[{token}]", f"[1, {token}, 2]", f'{{"a": {token}}}', f'{{"a": {token}, "b": 1}}'):
+            with pytest.raises(ValueError):
+                json.loads(text)
 
 
 # ------------------------------------------------------------------------------ ONNX models
@@ -449,16 +508,45 @@ def video_docs(draw) -> Doc:
     return Doc("bytes", b"", kind + f":{draw(st.integers(0, 2 ** 31))}")
 
 
+#: The MP4 boxes (ISO/IEC 14496-12) that lead the demuxer to the frames: the track and its sample table. A
+#: damaged type of any of them leaves no decodable frame (measured: none of the 8,160 one-byte changes of the
+#: test clip's eight type fields opens; a damaged moov or minf may still open: FFmpeg reads hoov, dinf, sinf).
+SAMPLE_TABLE_BOXES = (b"trak", b"mdia", b"stbl", b"stsd", b"stts", b"stsc", b"stsz", b"stco")
+_CONTAINER_BOXES = (b"moov", b"trak", b"mdia", b"minf", b"stbl")
+
+
+def mp4_boxes(data: bytes, start: int = 0, end: int | None = None) -> list[tuple[int, int, bytes]]:
+    """(offset, size, type) of every box of an MP4 file, walking into the containers on the way to the sample
+    table (a box: 32-bit big-endian size, 4-byte type)."""
+    end = len(data) if end is None else end
+    out = []
+    while start + 8 <= end:
+        size, kind = int.from_bytes(data[start:start + 4], "big"), data[start + 4:start + 8]
+        if size < 8:
+            break
+        out.append((start, size, kind))
+        if kind in _CONTAINER_BOXES:
+            out += mp4_boxes(data, start + 8, start + size)
+        start += size
+    return out
+
+
 def _video_bytes(doc: Doc, clip: bytes) -> Doc:
-    """Mutations of the real clip are made here (the clip exists only once the fixture ran)."""
+    """Mutations of the real clip are made here (the clip exists only once the fixture ran). Each leaves no
+    decodable frame by construction: a cut before the end of the sample table (the clip's moov box, which holds
+    it, comes after the frames), bytes flipped anywhere plus the type of one sample-table box, or the header
+    followed by junk."""
     if doc.label.startswith(("truncated", "flipped", "header+junk")):
         rng = np.random.default_rng(int(doc.label.split(":")[1]))
         data = bytearray(clip)
+        table = [(off, size) for off, size, kind in mp4_boxes(clip) if kind in SAMPLE_TABLE_BOXES]
         if doc.label.startswith("truncated"):
-            data = data[:int(rng.integers(1, len(data)))]
+            data = data[:int(rng.integers(1, max(off + size for off, size in table)))]
         elif doc.label.startswith("flipped"):
             for i in rng.integers(0, len(data), int(rng.integers(1, 40))):
                 data[i] = int(rng.integers(0, 256))
+            i = table[int(rng.integers(len(table)))][0] + 4 + int(rng.integers(4))    # a byte of the box type
+            data[i] = (clip[i] + int(rng.integers(1, 256))) % 256
         else:
             data = data[:64] + bytearray(rng.integers(0, 256, int(rng.integers(1, 20000)), dtype=np.uint8).tobytes())
         return Doc("bytes", bytes(data), doc.label)
