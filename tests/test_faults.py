@@ -128,6 +128,30 @@ def test_worker_killed_mid_run(case, tmp_path, monkeypatch, capsys):
     check_failed_then_resume(case, out, "worker process died (killed by SIGKILL)", before, capsys)
 
 
+def test_native_crash_is_retried_once(case, tmp_path, monkeypatch, capsys):
+    """A worker that segfaults (a fault in a C library) gets its run retried in a new worker:
+    the sweep ends as a clean one, with the crash said on stderr."""
+    out = tmp_path / "out"
+    before = {FIRST: prefilled(case, out)}
+    monkeypatch.setenv("MONORARP_FAULT", f"segv_once:{VICTIM}")
+    assert sweep(case[0], out, "--resume", "--workers", "2") == 0
+    err = capsys.readouterr().err
+    assert f"run {VICTIM}: worker process died (killed by SIGSEGV); retried once in a new worker" in err
+    assert summary(out) == case[2]
+    assert file_hashes(out, FIRST) == before[FIRST]
+    assert leftovers(out) == []
+
+
+def test_native_crash_twice_fails_the_run(case, tmp_path, monkeypatch, capsys):
+    """A run whose worker crashes again in the retry fails with the cause; --resume completes it."""
+    out = tmp_path / "out"
+    before = {FIRST: prefilled(case, out)}
+    monkeypatch.setenv("MONORARP_FAULT", f"segv:{VICTIM}")
+    assert sweep(case[0], out, "--resume", "--workers", "2") == 1
+    monkeypatch.delenv("MONORARP_FAULT")
+    check_failed_then_resume(case, out, "worker process died (killed by SIGSEGV), twice", before, capsys)
+
+
 def test_hung_run_times_out(case, tmp_path, monkeypatch, capsys):
     """A run that never returns is ended by --run-timeout; the other worker's run goes on."""
     out = tmp_path / "out"

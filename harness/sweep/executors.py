@@ -84,6 +84,11 @@ class RenderOnceQueue:
             return self._followers.popleft()
         return self._leaders.popleft() if self._leaders else None
 
+    def retry(self, task: RunTask) -> None:
+        """Hand ``task`` out again, before anything else (its worker crashed); the tasks that share
+        its frames keep waiting for it."""
+        self._followers.appendleft(task)
+
     def done(self, task: RunTask) -> None:
         """``task`` finished (whatever its outcome): the tasks that share its frames become ready."""
         key = self._group.pop(task.id, None)

@@ -6,6 +6,8 @@ so a test makes one chosen run of a real sweep fail in a real way:
 * ``kill:ID`` — the worker process sends itself SIGKILL once the run's files are written
   into its temporary directory and before they are committed (a process dying mid-run);
 * ``hang:ID`` — the worker sleeps forever at the same point (a hung run);
+* ``segv:ID`` — the worker dereferences a null pointer at the same point (a native crash:
+  SIGSEGV), every time; ``segv_once:ID`` only the first time in a sweep (the retry runs);
 * ``enospc:ID`` / ``enospc=BYTES:ID`` — while the run writes its outputs the disk is
   full: once BYTES bytes (default 0) have been written in all, every further write fails
   with ``OSError(ENOSPC)`` after writing the part that fits (a partial file, as on a real
@@ -19,17 +21,20 @@ product sets it.
 from __future__ import annotations
 
 import builtins
+import ctypes
 import errno
 import io
 import os
 import signal
+import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 ENV = "MONORARP_FAULT"
-KINDS = ("kill", "hang", "enospc")
+KINDS = ("kill", "hang", "enospc", "segv", "segv_once")
 
 
 def planned(run_id: str) -> tuple[str, int] | None:
@@ -41,7 +46,8 @@ def planned(run_id: str) -> tuple[str, int] | None:
         head, sep, rid = entry.strip().partition(":")
         kind, _, arg = head.partition("=")
         if not sep or kind not in KINDS or (arg and not arg.isdigit()):
-            raise ValueError(f"{ENV}: bad entry {entry!r}; expected kill:ID, hang:ID or enospc[=BYTES]:ID")
+            raise ValueError(f"{ENV}: bad entry {entry!r}; expected kill:ID, hang:ID, segv:ID, segv_once:ID "
+                             "or enospc[=BYTES]:ID")
         if rid == run_id:
             return kind, int(arg or 0)
     return None
@@ -58,6 +64,14 @@ def before_commit(run_id: str) -> None:
     elif fault[0] == "hang":
         while True:
             time.sleep(3600)
+    elif fault[0] in ("segv", "segv_once"):
+        # once per sweep: a marker named after the driver (the worker's parent) and the run
+        marker = Path(tempfile.gettempdir()) / f"monorarp-fault-{os.getppid()}-{run_id}"
+        if fault[0] == "segv_once":
+            if marker.exists():
+                return
+            marker.touch()
+        ctypes.string_at(0)               # SIGSEGV
 
 
 @contextmanager

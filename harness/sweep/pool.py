@@ -7,6 +7,10 @@ which run a worker holds. Then:
 * a worker that dies (SIGKILL, segfault, OOM killer) fails exactly its run, with the
   cause ("worker process died (killed by SIGKILL)"); a new worker takes its place and
   the other workers' runs go on untouched;
+* a worker that crashes in native code (SIGSEGV, SIGABRT, SIGBUS, SIGILL, SIGFPE: a fault in
+  a C library, not a kill) gets its run retried once in a new worker, with a line on stderr;
+  runs are deterministic, so the retry writes what an uncrashed run would have. A second
+  crash fails the run ("... (killed by SIGSEGV), twice");
 * with ``run_timeout_s``, a run that takes longer is ended by killing its worker
   (SIGKILL) and fails with "timeout after S s";
 * a worker whose driver dies (``kill -9`` of the sweep) is killed by the kernel
@@ -24,6 +28,7 @@ import faulthandler
 import multiprocessing
 import os
 import signal
+import sys
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -36,7 +41,10 @@ from harness.sweep.expand import RunTask
 from harness.sweep.worker import RunOutcome
 
 PR_SET_PDEATHSIG = 1
+#: Deaths by these signals are crashes inside the process (not kills): the run is retried once.
+NATIVE_CRASHES = frozenset({signal.SIGSEGV, signal.SIGABRT, signal.SIGBUS, signal.SIGILL, signal.SIGFPE})
 STARTED, DONE = "started", "done"      # worker -> driver messages
+RETRY = object()                        # _collect: run the task again
 
 
 def _die_with_parent(parent_pid: int) -> None:
@@ -140,6 +148,7 @@ class ProcessExecutor:
 
         threads = max(1, (os.cpu_count() or 1) // self.workers)
         queue = RenderOnceQueue(tasks)
+        retried: set[str] = set()
         idle: list[_Worker] = []
         busy: list[_Worker] = []
         n_workers = 0
@@ -171,7 +180,7 @@ class ProcessExecutor:
                 for w in list(busy):
                     outcome = None
                     if w.conn in ready or w.process.sentinel in ready:
-                        outcome = self._collect(w, runs_dir)
+                        outcome = self._collect(w, runs_dir, retry=w.task.id not in retried)
                     elif (self.run_timeout_s is not None and w.started is not None
                           and now - w.started >= self.run_timeout_s):
                         self._kill(w)
@@ -180,6 +189,14 @@ class ProcessExecutor:
                     if outcome is None:
                         continue
                     busy.remove(w)
+                    if outcome is RETRY:
+                        sys.stderr.write(f"run {w.task.id}: {death_cause(w.process.exitcode)}; retried once in a new "
+                                         "worker\n")
+                        retried.add(w.task.id)
+                        queue.retry(w.task)
+                        w.conn.close()
+                        n_workers -= 1
+                        continue
                     queue.done(w.task)
                     if w.process.is_alive():
                         w.task = None
@@ -194,9 +211,9 @@ class ProcessExecutor:
             for w in busy:
                 self._kill(w)
 
-    def _collect(self, w: _Worker, runs_dir: Path) -> RunOutcome | None:
-        """The outcome a ready worker sent, its death recorded as the run's failure, or None
-        (it only said it started)."""
+    def _collect(self, w: _Worker, runs_dir: Path, retry: bool = False) -> RunOutcome | object | None:
+        """The outcome a ready worker sent, its death recorded as the run's failure, :data:`RETRY`
+        (``retry`` and it crashed in native code: nothing recorded), or None (it only said it started)."""
         try:
             while w.conn.poll():
                 kind, outcome = w.conn.recv()
@@ -210,7 +227,11 @@ class ProcessExecutor:
         w.process.join(5)
         if w.process.is_alive():         # closed its pipe but lingers: end it
             self._kill(w)
-        return record_failure(w.task, runs_dir, death_cause(w.process.exitcode))
+        code = w.process.exitcode
+        crashed = code is not None and code < 0 and -code in NATIVE_CRASHES
+        if crashed and retry:
+            return RETRY
+        return record_failure(w.task, runs_dir, death_cause(code) + (", twice" if crashed else ""))
 
     @staticmethod
     def _kill(w: _Worker) -> None:
