@@ -96,9 +96,12 @@ def test_body_paint_differs_per_vehicle_and_per_seed():
     a = appearance.apply(style, img, ids, HORIZON)
     b = appearance.apply(dataclasses.replace(style, seed=8), img, ids, HORIZON)
     assert not np.array_equal(a[ids == 0], b[ids == 0])
-    # the same hue rotation would keep the two cars' hue difference; independent draws change it
-    hue = lambda im, v: float(np.median(cv2.cvtColor(im, cv2.COLOR_BGR2HSV)[ids == v][:, 0]))  # noqa: E731
-    assert abs((hue(a, 0) - hue(a, 3)) - (hue(img, 0) - hue(img, 3))) > 2
+    # each vehicle gets its own hue rotation: the two cars' rotations (circular, degrees) differ
+    def hue(im: np.ndarray, v: int) -> float:
+        return float(np.median(cv2.cvtColor(im.astype(np.float32) / 255, cv2.COLOR_BGR2HSV)[ids == v][:, 0]))
+
+    turn = [(hue(a, v) - hue(img, v) + 180.0) % 360.0 - 180.0 for v in (0, 3)]
+    assert abs(turn[0] - turn[1]) > 2.0 and max(map(abs, turn)) > 2.0
 
 
 # ------------------------------------------------------------------ weights read back from ONNX

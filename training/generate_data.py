@@ -18,7 +18,8 @@ those of the id pass, so vehicles hidden by fog or darkness are still labelled.
 With ``--appearance P`` a fraction P of the scenarios gets a random appearance style
 (:mod:`training.appearance`: paint, ground and sky tones, road texture, camera response) and
 wider placed-vehicle dimensions (:func:`random_dimensions`), again from their own random stream;
-``--appearance-family heldout`` draws the styles from the held-out family instead (validation only).
+``--appearance-family heldout`` draws the styles from the held-out family instead (validation only),
+``none`` renders the same scenes unstyled.
 
     python -m training.generate_data --out data/train --scenarios 300 --seed 0
     python -m training.generate_data --out data/val --scenarios 40 --seed 100000 --resolutions 640x360
@@ -172,8 +173,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
     the resolution, giving every stored box its continuous edges to 1/N px (``boxes_fine.npy``, rows
     aligned with ``boxes.npy``, source px; NaN where the vehicle has no pixel at the finer scale): the
     1x mask rounds each edge to a pixel boundary, +-0.5 px. A fraction ``styled`` of the scenarios gets an
-    appearance style of ``family`` (``train`` or ``heldout``, :mod:`training.appearance`) and wider
-    placed-vehicle dimensions."""
+    appearance style of ``family`` (``train`` or ``heldout``, :mod:`training.appearance`; ``none``: no style)
+    and wider placed-vehicle dimensions."""
     if keep_source and (len(set(resolutions)) != 1 or fovea):
         raise SystemExit("--keep-source needs a single resolution and no --fovea")
     if truth_supersample > 1 and not keep_source:
@@ -195,7 +196,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
             style = None
             if arng.random() < styled:   # dimensions first: both families then render the same scenes
                 random_dimensions(arng, sd["vehicles"])
-                style = (appearance.sample_heldout if family == "heldout" else appearance.sample_training)(arng)
+                samplers = {"train": appearance.sample_training, "heldout": appearance.sample_heldout}
+                style = samplers[family](arng) if family in samplers else None
             scen = parse_scenario(sd)
             frames = list(simulate(scen, frames_per_scenario * frame_stride))[::frame_stride]
         except ScenarioError:
@@ -275,8 +277,9 @@ def main(argv: list[str] | None = None) -> None:
                     help="fraction of scenarios with random light/weather/lens conditions (default 0)")
     ap.add_argument("--appearance", type=float, default=0.0, metavar="P",
                     help="fraction of scenarios with a random appearance style and wider vehicle sizes (default 0)")
-    ap.add_argument("--appearance-family", choices=("train", "heldout"), default="train",
-                    help="style family: train, or the held-out family (validation only)")
+    ap.add_argument("--appearance-family", choices=("train", "heldout", "none"), default="train",
+                    help="style family: train, the held-out family (validation only), or none (the same "
+                         "scenes and vehicle sizes, unstyled)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))

@@ -148,9 +148,11 @@ def main(argv: list[str] | None = None) -> None:
         "validation": {"data": val_note, **figs}}
     for k, f in extra.items():
         sv = robust.STYLE_VAL
+        style = {"unstyled": "no style", "styled": "a style of the training family",
+                 "heldout": "a style of the held-out family"}[k]
         meta[f"validation_{k}"] = {"data": f"{sv[1]} scenarios (seed {sv[0]}), {sv[2]} frames each, 640x360, every "
-                                           f"scenario with a style of the {'training' if k == 'styled' else 'held-out'}"
-                                           " family (training.appearance); same scenes in both sets", **f}
+                                           f"scenario with {style} (training.appearance) and the wider vehicle sizes; "
+                                           "the same scenes in the unstyled, styled and held-out sets", **f}
     out.with_suffix(".json").write_text(json.dumps(meta, indent=2) + "\n")
     print(json.dumps({k: v for k, v in meta.items() if k.startswith("validation")}, indent=2))
 
