@@ -43,9 +43,9 @@ from scipy import ndimage  # noqa: E402
 from harness.render.renderer import Renderer  # noqa: E402
 from harness.scenario import ScenarioError, parse_scenario  # noqa: E402
 from harness.simulation.simulator import simulate  # noqa: E402
-from training import appearance  # noqa: E402
 from monorarp.detection.fovea import Fovea  # noqa: E402
 from monorarp.detection.letterbox import Letterbox  # noqa: E402
+from training import appearance  # noqa: E402
 
 NET_W, NET_H = 320, 192
 TRAIN_RESOLUTIONS = ((640, 360), (640, 360), (960, 540), (1280, 720), (640, 480), (800, 450))
