@@ -1,13 +1,15 @@
 """Detector recall within 40 m and rendering frames/s under each light/weather condition.
 
 Usage: python benchmarks/bench_conditions.py [--frames N] [--conditions day,dusk,...] [--fps-only | --recall-only]
-       [--dehaze]
+       [--dehaze] [--detector NAME[,NAME...]]
 
 Recall: highway_cruise (640x360, its seed) rendered with each ``conditions:`` block; the
 shipped detector (centernet) runs on every frame; a ground-truth vehicle counts when its
 visibility (id pass, so fog and darkness do not hide it) is >= 0.3 and its d_long <= 40 m;
 a detection matches at IoU >= 0.5 (harness.scoring.match.split_ignored, as the scorer).
 ``--dehaze``: the detector removes haze first (``centernet`` with ``dehaze: true``).
+``--detector``: registered detector names or .onnx paths (default ``centernet``), comma-separated:
+each runs on the same rendered frames and gets its own line.
 Recall = matched counted / counted, pooled over frames; ratio = recall / recall(day).
 Precision = matched / detections, leaving out (as the scorer) detections matched to or covering
 an uncounted vehicle and those whose box bottom meets the ground beyond 40 m.
@@ -57,12 +59,14 @@ def scenario(cond: dict | None, width: int = 640, height: int = 360, seed: int |
     return parse_scenario(d)
 
 
-def recall(cond: dict | None, n_frames: int, dehaze: bool = False, seed: int | None = None
-           ) -> tuple[float, int, int, float]:
+def recall(cond: dict | None, n_frames: int, dehaze: bool = False, seed: int | None = None,
+           detectors: tuple[str, ...] = ("centernet",)) -> list[tuple[float, int, int, float]]:
+    """Per detector: (recall, matched, counted, precision) on the same frames."""
     sc = scenario(cond, seed=seed)
-    det = ComponentConfig(name="centernet", kwargs={"dehaze": True} if dehaze else {})
-    detector = build_detector(det, sc.camera.model())
-    tp = n = n_pred = 0
+    kw = {"dehaze": True} if dehaze else {}
+    built = [build_detector(ComponentConfig(name=name, kwargs=kw), sc.camera.model()) for name in detectors]
+    tp, n_pred = np.zeros(len(built), int), np.zeros(len(built), int)
+    n = 0
     with Renderer(sc) as r:
         for world in simulate(sc, n_frames):
             f = r.render(world)
@@ -70,13 +74,14 @@ def recall(cond: dict | None, n_frames: int, dehaze: bool = False, seed: int | N
             objs = truth.objects
             counted = np.array([o.visibility >= MIN_VISIBILITY and o.d_long <= MAX_RANGE_M for o in objs],
                                dtype=bool)
-            dets = as_boxes([d.box for d in detector.detect(f.image)])
-            kept, ignored = split_ignored(as_boxes([o.box for o in objs]), counted, dets, MIN_IOU, 0.5,
-                                          out_of_range(dets, r.camera, MAX_RANGE_M))
-            tp += len(kept)
-            n_pred += int((~ignored).sum())
+            for k, detector in enumerate(built):
+                dets = as_boxes([d.box for d in detector.detect(f.image)])
+                kept, ignored = split_ignored(as_boxes([o.box for o in objs]), counted, dets, MIN_IOU, 0.5,
+                                              out_of_range(dets, r.camera, MAX_RANGE_M))
+                tp[k] += len(kept)
+                n_pred[k] += int((~ignored).sum())
             n += int(counted.sum())
-    return (tp / n if n else float("nan")), tp, n, (tp / n_pred if n_pred else float("nan"))
+    return [((t / n if n else float("nan")), int(t), n, (t / p if p else float("nan"))) for t, p in zip(tp, n_pred)]
 
 
 def render_fps(cond: dict | None, n_frames: int) -> tuple[float, float]:
@@ -100,20 +105,28 @@ def main() -> None:
     ap.add_argument("--recall-only", action="store_true")
     ap.add_argument("--dehaze", action="store_true", help="detector with dehaze: true")
     ap.add_argument("--seed", type=int, default=None, help="scenario seed (default: highway_cruise's, 1)")
+    ap.add_argument("--detector", default="centernet",
+                    help="detector name(s) or .onnx path(s), comma-separated, run on the same frames")
     args = ap.parse_args()
     names = args.conditions.split(",")
-    day = None
+    detectors = tuple(args.detector.split(","))
+    day: dict[str, float] = {}
     for name in names:
         line = f"{name:15s}"
         if not args.recall_only:
             fps, cpu_ms = render_fps(CONDITIONS[name], min(args.frames, 60))
             line += f" render {fps:5.1f} frames/s ({cpu_ms:5.1f} ms CPU/frame)"
-        if not args.fps_only:
-            rec, tp, n, prec = recall(CONDITIONS[name], args.frames, args.dehaze, args.seed)
-            day = rec if name == "day" else day
-            ratio = f"{rec / day:.3f}" if day else "-"
-            line += f"  recall<=40m {rec:.3f} ({tp}/{n})  ratio to day {ratio}  precision {prec:.3f}"
-        print(line, flush=True)
+        if args.fps_only:
+            print(line, flush=True)
+            continue
+        for det, (rec, tp, n, prec) in zip(detectors, recall(CONDITIONS[name], args.frames, args.dehaze, args.seed,
+                                                             detectors)):
+            if name == "day":
+                day[det] = rec
+            ratio = f"{rec / day[det]:.3f}" if day.get(det) else "-"
+            tag = f" [{det}]" if len(detectors) > 1 else ""
+            print(line + f"  recall<=40m {rec:.3f} ({tp}/{n})  ratio to day {ratio}  precision {prec:.3f}{tag}",
+                  flush=True)
 
 
 if __name__ == "__main__":

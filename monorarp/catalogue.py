@@ -10,6 +10,7 @@ from __future__ import annotations
 BUILTINS: dict[str, dict[str, str]] = {
     "detector": {
         "centernet": "monorarp.detection.centernet:CenterNetDetector",
+        "centernet_robust": "monorarp.detection.centernet:RobustCenterNetDetector",
         "yolo": "monorarp.detection.yolo:YoloDetector",
     },
     "tracker": {

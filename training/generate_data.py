@@ -15,6 +15,11 @@ With ``--conditions P`` a fraction P of the scenarios also gets a random ``condi
 block (time of day, fog 40-1000 m, rain, motion blur, JPEG; :func:`random_conditions`),
 drawn from its own random stream so the rest of each scenario is unchanged; boxes stay
 those of the id pass, so vehicles hidden by fog or darkness are still labelled.
+With ``--appearance P`` a fraction P of the scenarios gets a random appearance style
+(:mod:`training.appearance`: paint, ground and sky tones, road texture, camera response) and
+wider placed-vehicle dimensions (:func:`random_dimensions`), again from their own random stream;
+``--appearance-family heldout`` draws the styles from the held-out family instead (validation only),
+``none`` renders the same scenes unstyled.
 
     python -m training.generate_data --out data/train --scenarios 300 --seed 0
     python -m training.generate_data --out data/val --scenarios 40 --seed 100000 --resolutions 640x360
@@ -40,6 +45,7 @@ from harness.scenario import ScenarioError, parse_scenario  # noqa: E402
 from harness.simulation.simulator import simulate  # noqa: E402
 from monorarp.detection.fovea import Fovea  # noqa: E402
 from monorarp.detection.letterbox import Letterbox  # noqa: E402
+from training import appearance  # noqa: E402
 
 NET_W, NET_H = 320, 192
 TRAIN_RESOLUTIONS = ((640, 360), (640, 360), (960, 540), (1280, 720), (640, 480), (800, 450))
@@ -104,6 +110,15 @@ def random_conditions(rng: np.random.Generator) -> dict:
     return out
 
 
+def random_dimensions(rng: np.random.Generator, vehicles: list[dict]) -> None:
+    """Redraw the placed vehicles' footprints (m) in place from wider ranges than :func:`scenario_dict`'s:
+    cars and vans 3.4-6.8 m x 1.5-2.2 m (over 5.5 m the mesh is a tall van), 25 % trucks 7.5-18 m x 2.3-2.6 m."""
+    for v in vehicles:
+        big = rng.random() < 0.25
+        v["length_m"] = round(float(rng.uniform(7.5, 18.0) if big else rng.uniform(3.4, 6.8)), 2)
+        v["width_m"] = round(float(rng.uniform(2.3, 2.6) if big else rng.uniform(1.5, 2.2)), 2)
+
+
 def visible_boxes(id_mask: np.ndarray, full_pixels: dict[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ids, boxes (K, 4) tight over visible pixels, continuous px; visibility (K,))."""
     labels = id_mask + 1
@@ -147,7 +162,7 @@ def fine_truth(renderer: Renderer, world, n: int) -> dict[int, np.ndarray]:
 def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, frame_stride: int,
              resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
              fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1,
-             conditions: float = 0.0) -> None:
+             conditions: float = 0.0, styled: float = 0.0, family: str = "train") -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
     the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
@@ -157,7 +172,9 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
     With ``truth_supersample`` N > 1 (needs ``keep_source``) the id masks are also rendered at N times
     the resolution, giving every stored box its continuous edges to 1/N px (``boxes_fine.npy``, rows
     aligned with ``boxes.npy``, source px; NaN where the vehicle has no pixel at the finer scale): the
-    1x mask rounds each edge to a pixel boundary, +-0.5 px."""
+    1x mask rounds each edge to a pixel boundary, +-0.5 px. A fraction ``styled`` of the scenarios gets an
+    appearance style of ``family`` (``train`` or ``heldout``, :mod:`training.appearance`; ``none``: no style)
+    and wider placed-vehicle dimensions."""
     if keep_source and (len(set(resolutions)) != 1 or fovea):
         raise SystemExit("--keep-source needs a single resolution and no --fovea")
     if truth_supersample > 1 and not keep_source:
@@ -175,12 +192,19 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
             crng = np.random.default_rng([seed, s, 0xC0D])
             if crng.random() < conditions:
                 sd["conditions"] = random_conditions(crng)
+            arng = np.random.default_rng([seed, s, 0xA99])
+            style = None
+            if arng.random() < styled:   # dimensions first: both families then render the same scenes
+                random_dimensions(arng, sd["vehicles"])
+                samplers = {"train": appearance.sample_training, "heldout": appearance.sample_heldout}
+                style = samplers[family](arng) if family in samplers else None
             scen = parse_scenario(sd)
             frames = list(simulate(scen, frames_per_scenario * frame_stride))[::frame_stride]
         except ScenarioError:
             skipped += 1
             continue
         views = [(None, Letterbox.fit(res[0], res[1], NET_W, NET_H))]
+        horizon = scen.camera.model().horizon_row
         fov = fovea_of(scen) if fovea else None
         if fov is not None:
             views.append((fov, Letterbox.fit(fov.w, fov.h, NET_W, NET_H)))
@@ -188,10 +212,11 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
                                    else contextlib.nullcontext()) as r_fine:
             for wstate in frames:
                 fr = r.render(wstate)
+                image_full = fr.image if style is None else appearance.apply(style, fr.image, fr.id_mask, horizon)
                 if r_fine is not None:
                     fine_by_id = fine_truth(r_fine, wstate, truth_supersample)
                 for view, lb in views:
-                    image, mask = fr.image, fr.id_mask
+                    image, mask = image_full, fr.id_mask
                     if view is not None:
                         image, mask = view.cut(image), view.cut(mask)
                     ids, boxes, vis = visible_boxes(mask, fr.full_pixels)
@@ -211,6 +236,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
                                   "hfov_deg": c.hfov_deg, "height_m": c.height_m, "pitch_deg": c.pitch_deg,
                                   "view": "full" if view is None else [view.x0, view.y0, view.w, view.h],
                                   "conditions": None if scen.conditions is None else scen.conditions.model_dump(),
+                                  "style": None if style is None else style.to_dict(),
                                   "n_required": int(required.sum())}
                                  | ({"camera": scen.camera.model().to_dict()} if keep_source else {}))
         if (s + 1) % 10 == 0:
@@ -225,7 +251,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         "net_input": [NET_W, NET_H], "seed": seed, "scenarios": n_scenarios, "skipped_scenarios": skipped,
         "frames_per_scenario": frames_per_scenario, "frame_stride": frame_stride,
         "resolutions": [list(r) for r in resolutions], "min_visibility": min_visibility,
-        "min_size_net_px": min_size, "fovea": fovea, "conditions_fraction": conditions, "images": metas}, indent=1))
+        "min_size_net_px": min_size, "fovea": fovea, "conditions_fraction": conditions,
+        "appearance_fraction": styled, "appearance_family": family, "images": metas}, indent=1))
     req = sum(m["n_required"] for m in metas)
     print(f"wrote {len(images)} images, {req} required boxes, {len(rows) - req} ignored to {out} "
           f"({skipped} scenarios skipped) in {time.time() - t0:.0f}s", flush=True)
@@ -248,13 +275,20 @@ def main(argv: list[str] | None = None) -> None:
                     help="also store the full-resolution frames (source.npy) and cameras (one resolution only)")
     ap.add_argument("--conditions", type=float, default=0.0, metavar="P",
                     help="fraction of scenarios with random light/weather/lens conditions (default 0)")
+    ap.add_argument("--appearance", type=float, default=0.0, metavar="P",
+                    help="fraction of scenarios with a random appearance style and wider vehicle sizes (default 0)")
+    ap.add_argument("--appearance-family", choices=("train", "heldout", "none"), default="train",
+                    help="style family: train, the held-out family (validation only), or none (the same "
+                         "scenes and vehicle sizes, unstyled)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
     if not 0.0 <= a.conditions <= 1.0:
         ap.error("--conditions must be a fraction in [0, 1]")
+    if not 0.0 <= a.appearance <= 1.0:
+        ap.error("--appearance must be a fraction in [0, 1]")
     generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
-             a.keep_source, a.truth_supersample, a.conditions)
+             a.keep_source, a.truth_supersample, a.conditions, a.appearance, a.appearance_family)
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ second pass sees.
 
     pip install -e '.[train]'
     python -m training.reproduce            # writes monorarp/models/centernet_vehicle.{onnx,json}
+    python -m training.reproduce --variant robust   # centernet_vehicle_robust.{onnx,json} (training.robust)
 
 Stages are skipped when their output exists (``--force`` redoes them). Everything is
 seeded; the renderer (Mesa llvmpipe) and torch's CPU kernels are deterministic on
@@ -24,7 +25,7 @@ import cv2
 import numpy as np
 
 from monorarp.camera import CameraModel
-from training import evaluate, export, generate_data, train
+from training import evaluate, export, generate_data, robust, train
 from training.data import Dataset
 
 TRAIN_SHARDS = ((0, 150), (1, 150))       # (seed, scenarios); 10 frames each
@@ -34,13 +35,14 @@ EPOCHS, BATCH, LR, SEED = 24, 16, 3e-3, 0  # stage 1: from scratch on TRAIN_SHAR
 FT_EPOCHS, FT_LR, FT_SEED = 10, 1e-3, 1    # stage 2: fine-tune on TRAIN_SHARDS + FOVEA_SHARDS
 
 
-def metadata(figs: dict, score_threshold: float, model_path: Path) -> dict:
+def model_card(name: str, score_threshold: float, model_path: Path) -> dict:
+    """The metadata fields every CenterNet model file carries (input, outputs, decoding, size)."""
     import onnx
 
     from training.model import CenterNetVehicle, n_params
 
     return {
-        "name": "centernet_vehicle",
+        "name": name,
         "input": {"width": export.INPUT_W, "height": export.INPUT_H, "layout": "NCHW", "color": "RGB",
                   "scale": "1/255", "resize": "letterbox (aspect kept, centred, pad value 114)"},
         "outputs": {"heatmap": "(1,1,H/4,W/4) sigmoid vehicle-centre probability",
@@ -50,75 +52,109 @@ def metadata(figs: dict, score_threshold: float, model_path: Path) -> dict:
         "score_threshold": round(float(score_threshold), 3),
         "params": n_params(CenterNetVehicle()),
         "opset": 17, "onnx_ir_version": onnx.load(str(model_path)).ir_version,
-        "training": {
-            "command": "python -m training.reproduce",
-            "data": f"{sum(n for _, n in TRAIN_SHARDS + FOVEA_SHARDS)} random harness scenarios (seeds "
-                    f"{[s for s, _ in TRAIN_SHARDS + FOVEA_SHARDS]}), "
-                    "10 frames each, resolutions 640x360/960x540/1280x720/640x480/800x450, lanes 2-5, camera "
-                    "height 1.1-1.8 m, pitch 0-6 deg, hfov 50-90 deg, random palettes, light, noise, blur; "
-                    "1-4 placed vehicles at 4-70 m (cars and 8-16 m trucks) plus random traffic; required boxes: "
-                    "visibility >= 0.3 and >= 3 px at 320x192; the seed-"
-                    f"{[s for s, _ in FOVEA_SHARDS]} scenarios also give each frame's fovea crop (the detector's "
-                    "second pass around the horizon at 2x the full view's scale) as a training image",
-            "epochs": EPOCHS, "batch": BATCH, "lr": LR, "seed": SEED,
-            "fine_tune": {"epochs": FT_EPOCHS, "lr": FT_LR, "seed": FT_SEED,
-                          "data": "all shards (full views + fovea crops)", "init": "the stage-1 weights"},
-            "loss": "focal (heatmap) + L1 on edge distances (Gaussian-weighted, each vehicle's weights sum to 1, "
-                    "bottom edge x2)",
-        },
-        "validation": {"data": f"{VAL[1]} scenarios (seed {VAL[0]}), {VAL[2]} frames each, 640x360; "
-                               "required boxes: visibility >= 0.3 and >= 3 px at 320x192 (others ignored)",
-                       **figs},
     }
+
+
+def training_card() -> dict:
+    """The ``training`` block of the shipped model's metadata."""
+    return {
+        "command": "python -m training.reproduce",
+        "data": f"{sum(n for _, n in TRAIN_SHARDS + FOVEA_SHARDS)} random harness scenarios (seeds "
+                f"{[s for s, _ in TRAIN_SHARDS + FOVEA_SHARDS]}), "
+                "10 frames each, resolutions 640x360/960x540/1280x720/640x480/800x450, lanes 2-5, camera "
+                "height 1.1-1.8 m, pitch 0-6 deg, hfov 50-90 deg, random palettes, light, noise, blur; "
+                "1-4 placed vehicles at 4-70 m (cars and 8-16 m trucks) plus random traffic; required boxes: "
+                "visibility >= 0.3 and >= 3 px at 320x192; the seed-"
+                f"{[s for s, _ in FOVEA_SHARDS]} scenarios also give each frame's fovea crop (the detector's "
+                "second pass around the horizon at 2x the full view's scale) as a training image",
+        "epochs": EPOCHS, "batch": BATCH, "lr": LR, "seed": SEED,
+        "fine_tune": {"epochs": FT_EPOCHS, "lr": FT_LR, "seed": FT_SEED,
+                      "data": "all shards (full views + fovea crops)", "init": "the stage-1 weights"},
+        "loss": "focal (heatmap) + L1 on edge distances (Gaussian-weighted, each vehicle's weights sum to 1, "
+                "bottom edge x2)",
+    }
+
+
+def shipped_checkpoint(d: Path, force: bool) -> Path:
+    """Data, stage 1 from scratch, stage 2 with fovea crops; return the final checkpoint."""
+    for seed, n in TRAIN_SHARDS:
+        if force or not (d / f"train{seed}" / "meta.json").exists():
+            generate_data.main(["--out", str(d / f"train{seed}"), "--scenarios", str(n), "--seed", str(seed)])
+    for seed, n in FOVEA_SHARDS:
+        if force or not (d / f"train{seed}f" / "meta.json").exists():
+            generate_data.main(["--out", str(d / f"train{seed}f"), "--scenarios", str(n), "--seed", str(seed),
+                                "--fovea"])
+    ckpt = d / "centernet.pt"
+    if force or not ckpt.exists():
+        train.main(["--data", *[str(d / f"train{s}") for s, _ in TRAIN_SHARDS], "--out", str(ckpt),
+                    "--epochs", str(EPOCHS), "--batch", str(BATCH), "--lr", str(LR), "--seed", str(SEED)])
+    ckpt_ft = d / "centernet_fovea.pt"
+    if force or not ckpt_ft.exists():
+        shards = [str(d / f"train{s}") for s, _ in TRAIN_SHARDS] + [str(d / f"train{s}f") for s, _ in FOVEA_SHARDS]
+        train.main(["--data", *shards, "--out", str(ckpt_ft), "--init", str(ckpt), "--epochs", str(FT_EPOCHS),
+                    "--batch", str(BATCH), "--lr", str(FT_LR), "--seed", str(FT_SEED)])
+    return ckpt_ft
+
+
+def val_figures(model: Path, data: Path) -> dict:
+    """The net's own figures (one pass on the 320x192 canvases, no refinement) on one validation set."""
+    ds = Dataset.load(data)
+    det = evaluate.CenterNetDetector(model, score_threshold=0.05, refine_bottom=False)
+    return evaluate.figures(*evaluate.predict(det, ds), ds)
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--data", type=Path, default=Path("data"))
-    ap.add_argument("--out", type=Path, default=Path("monorarp/models/centernet_vehicle.onnx"))
+    ap.add_argument("--variant", choices=("shipped", "robust"), default="shipped",
+                    help="shipped: centernet_vehicle; robust: centernet_vehicle_robust (training.robust)")
+    ap.add_argument("--out", type=Path, default=None, help="default: the variant's file in monorarp/models/")
     ap.add_argument("--force", action="store_true")
     a = ap.parse_args(argv)
     d = a.data
-    for seed, n in TRAIN_SHARDS:
-        if a.force or not (d / f"train{seed}" / "meta.json").exists():
-            generate_data.main(["--out", str(d / f"train{seed}"), "--scenarios", str(n), "--seed", str(seed)])
-    for seed, n in FOVEA_SHARDS:
-        if a.force or not (d / f"train{seed}f" / "meta.json").exists():
-            generate_data.main(["--out", str(d / f"train{seed}f"), "--scenarios", str(n), "--seed", str(seed),
-                                "--fovea"])
+    robust_variant = a.variant == "robust"
+    out = a.out or (robust.OUT if robust_variant else Path("monorarp/models/centernet_vehicle.onnx"))
     vs, vn, vf = VAL
     if a.force or not (d / "val" / "meta.json").exists():
         generate_data.main(["--out", str(d / "val"), "--scenarios", str(vn), "--seed", str(vs),
                             "--frames", str(vf), "--resolutions", "640x360"])
-    ckpt = d / "centernet.pt"
-    if a.force or not ckpt.exists():
-        train.main(["--data", *[str(d / f"train{s}") for s, _ in TRAIN_SHARDS], "--out", str(ckpt),
-                    "--epochs", str(EPOCHS), "--batch", str(BATCH), "--lr", str(LR), "--seed", str(SEED)])
-    ckpt_ft = d / "centernet_fovea.pt"
-    if a.force or not ckpt_ft.exists():
-        shards = [str(d / f"train{s}") for s, _ in TRAIN_SHARDS] + [str(d / f"train{s}f") for s, _ in FOVEA_SHARDS]
-        train.main(["--data", *shards, "--out", str(ckpt_ft), "--init", str(ckpt), "--epochs", str(FT_EPOCHS),
-                    "--batch", str(BATCH), "--lr", str(FT_LR), "--seed", str(FT_SEED)])
-    export.export(ckpt_ft, a.out, d / "val")
+    ckpt = robust.checkpoint(d, a.force) if robust_variant else shipped_checkpoint(d, a.force)
+    export.export(ckpt, out, d / "val")
     # validation at a low threshold (AP), then the F1-optimal threshold goes into the metadata
-    a.out.with_suffix(".json").unlink(missing_ok=True)
+    out.with_suffix(".json").unlink(missing_ok=True)
+    figs = val_figures(out, d / "val")
+    extra = {k: val_figures(out, p) for k, p in robust.style_val_dirs(d).items()} if robust_variant else {}
+    if robust_variant:   # threshold: best F1 over the plain and in-family styled sets (never the held-out one)
+        ds_thr = Dataset.concat([d / "val", robust.style_val_dirs(d)["styled"]])
+        det = evaluate.CenterNetDetector(out, score_threshold=0.05, refine_bottom=False)
+        thr = evaluate.figures(*evaluate.predict(det, ds_thr), ds_thr)["f1_best"]["score_threshold"] or 0.3
+    else:
+        thr = figs["f1_best"]["score_threshold"] or 0.3
     ds = Dataset.load(d / "val")
-    det = evaluate.CenterNetDetector(a.out, score_threshold=0.05, refine_bottom=False)   # the net's own
-    figs = evaluate.figures(*evaluate.predict(det, ds), ds)
-    thr = figs["f1_best"]["score_threshold"] or 0.3
     frame = cv2.resize(np.asarray(ds.images[0])[6:186], (640, 360), interpolation=cv2.INTER_LINEAR)
     figs["ms_per_frame_640x360_1thread"] = round(evaluate.time_per_frame(
-        evaluate.CenterNetDetector(a.out, score_threshold=thr, refine_bottom=False), image=frame), 2)
+        evaluate.CenterNetDetector(out, score_threshold=thr, refine_bottom=False), image=frame), 2)
     cam = CameraModel.from_fov(640, 360, 70.0, 1.3)   # a level camera: fovea = the 320x192 px around the horizon
     figs["ms_per_frame_640x360_1thread_foveated"] = round(evaluate.time_per_frame(
-        evaluate.CenterNetDetector(a.out, score_threshold=thr, camera=cam, refine_bottom=False), image=frame), 2)
+        evaluate.CenterNetDetector(out, score_threshold=thr, camera=cam, refine_bottom=False), image=frame), 2)
     figs["timing_note"] = (f"mean of 200 detect() calls on a 640x360 validation frame (letterbox + net + "
                            f"decode), intra_op_num_threads=1, {os.cpu_count()} CPUs shared with other jobs; "
                            "'foveated': with a camera, so the second pass on the fovea crop runs too. AP and "
                            "bottom-edge figures are the net's own (one pass on the 320x192 validation canvases)")
-    meta = metadata(figs, thr, a.out)
-    a.out.with_suffix(".json").write_text(json.dumps(meta, indent=2) + "\n")
-    print(json.dumps(meta["validation"], indent=2))
+    val_note = (f"{VAL[1]} scenarios (seed {VAL[0]}), {VAL[2]} frames each, 640x360; "
+                "required boxes: visibility >= 0.3 and >= 3 px at 320x192 (others ignored)")
+    meta = model_card(out.stem, thr, out) | {
+        "training": robust.training_card() if robust_variant else training_card(),
+        "validation": {"data": val_note, **figs}}
+    for k, f in extra.items():
+        sv = robust.STYLE_VAL
+        style = {"unstyled": "no style", "styled": "a style of the training family",
+                 "heldout": "a style of the held-out family"}[k]
+        meta[f"validation_{k}"] = {"data": f"{sv[1]} scenarios (seed {sv[0]}), {sv[2]} frames each, 640x360, every "
+                                           f"scenario with {style} (training.appearance) and the wider vehicle sizes; "
+                                           "the same scenes in the unstyled, styled and held-out sets", **f}
+    out.with_suffix(".json").write_text(json.dumps(meta, indent=2) + "\n")
+    print(json.dumps({k: v for k, v in meta.items() if k.startswith("validation")}, indent=2))
 
 
 if __name__ == "__main__":

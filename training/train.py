@@ -8,6 +8,8 @@ Augmentation: horizontal flip, brightness/contrast/colour jitter, sensor noise.
 
     python -m training.train --data data/train0 data/train1 --out data/ckpt.pt --epochs 30
     python -m training.train ... --init data/ckpt.pt --lr 1e-3   # fine-tune (a second cosine cycle)
+    python -m training.train ... --init data/shipped_init.pt --freeze-bn   # from an exported model
+                                                                          # (training.onnx_init)
 """
 
 from __future__ import annotations
@@ -74,8 +76,10 @@ def make_batch(ds: Dataset, idx: np.ndarray, rng: np.random.Generator, stride: i
 
 
 def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed: int, threads: int,
-          log_every: int = 20, init: Path | None = None) -> None:
-    """Train (from scratch, or fine-tune from checkpoint ``init``) and save to ``out`` after every epoch."""
+          log_every: int = 20, init: Path | None = None, freeze_bn: bool = False) -> None:
+    """Train (from scratch, or fine-tune from checkpoint ``init``) and save to ``out`` after every epoch.
+    ``freeze_bn``: BatchNorm layers use their running statistics (not the batch's) and keep them; needed
+    when ``init`` comes from an exported model, whose BatchNorms are folded into the convs."""
     torch.manual_seed(seed)
     torch.set_num_threads(threads)
     rng = np.random.default_rng(seed)
@@ -95,6 +99,10 @@ def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed:
     step = 0
     for ep in range(epochs):
         net.train()
+        if freeze_bn:
+            for m in net.modules():
+                if isinstance(m, torch.nn.BatchNorm2d):
+                    m.eval()
         perm = rng.permutation(len(ds.images))
         for bi in range(steps_per_epoch):
             x, hm, lt, wt, mk = make_batch(ds, perm[bi * batch:(bi + 1) * batch], rng, stride, True)
@@ -112,7 +120,7 @@ def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed:
                 print(f"ep {ep} step {step}/{total} hm {l_hm.item():.3f} box {l_box.item():.3f} "
                       f"lr {sched.get_last_lr()[0]:.2e} {time.time() - t0:.0f}s", flush=True)
         torch.save({"model": net.state_dict(), "epoch": ep + 1, "seed": seed,
-                    "init": None if init is None else str(init)}, out)
+                    "init": None if init is None else str(init), "freeze_bn": freeze_bn}, out)
     print(f"done in {time.time() - t0:.0f}s -> {out}", flush=True)
 
 
@@ -126,9 +134,10 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--init", type=Path, default=None, help="fine-tune from this checkpoint's weights")
+    ap.add_argument("--freeze-bn", action="store_true", help="keep BatchNorm statistics fixed (init from ONNX)")
     a = ap.parse_args(argv)
     a.out.parent.mkdir(parents=True, exist_ok=True)
-    train(a.data, a.out, a.epochs, a.batch, a.lr, a.seed, a.threads, init=a.init)
+    train(a.data, a.out, a.epochs, a.batch, a.lr, a.seed, a.threads, init=a.init, freeze_bn=a.freeze_bn)
 
 
 if __name__ == "__main__":

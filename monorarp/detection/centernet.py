@@ -25,6 +25,7 @@ from monorarp.types import Detection
 
 REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes/edge.md)
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_vehicle.onnx"
+ROBUST_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_robust.onnx")
 OUTPUT_NAMES = ("heatmap", "ltrb")
 
 
@@ -232,3 +233,12 @@ class CenterNetDetector:
                 for b, sc in zip(boxes[keep], scores[keep])]
 
     __call__ = detect
+
+
+class RobustCenterNetDetector(CenterNetDetector):
+    """:class:`CenterNetDetector` with the appearance-randomised model ``centernet_vehicle_robust.onnx``
+    (registered as ``centernet_robust``; training and figures: docs/weather.md, retraining)."""
+
+    def __init__(self, model_path: str | Path | None = None, camera: CameraModel | dict | None = None,
+                 **kw) -> None:
+        super().__init__(ROBUST_MODEL if model_path is None else model_path, camera=camera, **kw)
