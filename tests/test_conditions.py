@@ -200,7 +200,7 @@ def test_shipped_light_weather_sweep_expands():
     from harness.sweep.expand import load_and_expand
 
     exp = load_and_expand(Path(__file__).resolve().parent.parent / "scenarios/conditions/light_weather.yaml")
-    assert len(exp.tasks) == 64 and all(t.error is None for t in exp.tasks)
+    assert len(exp.tasks) == 128 and all(t.error is None for t in exp.tasks)
     tods = {t.scenario["conditions"]["time_of_day"] for t in exp.tasks}
     assert tods == {"day", "low_sun", "dusk", "night"}
 
