@@ -76,7 +76,13 @@ class StateEstimator:
         max_inward_offset_m: the most (m) a learnt near-edge offset may move a vehicle towards the
             centre line (:meth:`_inward_clipped`; None: no limit).
         expansion_process_std: process noise (1/s^2) of the per-track expansion-rate filter
-            (:mod:`monorarp.expansion`), output as ``ObjectState.expansion_rate``.
+            (:mod:`monorarp.expansion`), output as ``ObjectState.expansion_rate``, where the
+            distance is unknown or ``expansion_accel_std`` is None.
+        expansion_accel_std: relative acceleration one-sigma (m/s^2) that sets that filter's
+            process noise from each track's distance (``accel_std / d_y``).
+        expansion_pixel_std: one-sigma (px) of each side edge of a box in that filter.
+        expansion_constant_speed: that filter predicts a constant closing speed (the rate's own
+            growth) instead of a constant rate.
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -93,6 +99,8 @@ class StateEstimator:
                  bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
                  bias_tau_s: float = 1.0, offset_learn_margin_px: float | None = None,
                  max_inward_offset_m: float | None = 0.3, expansion_process_std: float = 1.0,
+                 expansion_accel_std: float | None = 4.5, expansion_constant_speed: bool = True,
+                 expansion_pixel_std: float = 1.0,
                  pixel_std_per_height: float = 0.01, max_unmeasured_s: float = 0.5,
                  min_vehicle_width_m: float = 1.4, near_border_frac: float = 0.05) -> None:
         if velocity not in ("kalman", "difference"):
@@ -117,7 +125,9 @@ class StateEstimator:
         if max_inward_offset_m is not None and not (np.isfinite(max_inward_offset_m) and max_inward_offset_m >= 0):
             raise ValueError(f"max_inward_offset_m must be >= 0 or None, got {max_inward_offset_m}")
         self.max_inward_offset_m = None if max_inward_offset_m is None else float(max_inward_offset_m)
-        self._expansion = ExpansionFilter(process_std=expansion_process_std)
+        self._expansion = ExpansionFilter(pixel_std=expansion_pixel_std, process_std=expansion_process_std,
+                                          accel_std=expansion_accel_std,
+                                          constant_speed=expansion_constant_speed)
         if not reinit_sigmas > 0:
             raise ValueError(f"reinit_sigmas must be > 0, got {reinit_sigmas}")
         if robust_sigmas is not None and not robust_sigmas > 0:
@@ -379,7 +389,7 @@ class StateEstimator:
             cut_bottom, side_cut = flags[:, 2], flags[:, :2].any(axis=1)
             out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom, boxes[:, 3] - boxes[:, 1])
             restart = np.array([self._born.get(i) == t for i in ids])
-            rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~side_cut, t, restart)
+            rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~side_cut, t, restart, out[:, 1])
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)

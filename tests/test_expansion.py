@@ -41,6 +41,34 @@ def test_rate_converges_to_closing_speed_over_distance():
     assert 0 < std[0] < 0.15
 
 
+def test_constant_speed_prediction_follows_a_steady_approach_without_lag():
+    # closing at 20 m/s from 60 m to 12 m: the exact constant-closing-speed prediction has no lag,
+    # the constant-rate one lags the rate's growth (rate^2) by more
+    ts = np.arange(37) / FPS
+    zs = 60.0 - 20.0 * ts
+    truth = 20.0 / zs[-1]
+    exact, _ = run(zs, ts, constant_speed=True, process_std=0.05)[-1]
+    lagging, _ = run(zs, ts, process_std=0.05)[-1]
+    assert exact[0] == pytest.approx(truth, rel=0.01)
+    assert lagging[0] < 0.9 * truth
+
+
+def test_distance_scales_the_process_noise():
+    # accel_std / Z: at 80 m a 4 m/s^2 relative acceleration changes the rate by 0.05 /s^2, so a far
+    # track's rate settles to a much smaller sigma than with a fixed 1 /s^2; with no distance, the fixed one
+    ts = np.arange(45) / FPS
+    def final_std(distance):
+        f = ExpansionFilter(accel_std=4.0)
+        for t in ts:
+            _, std = f.update([1], np.array([box_at(80.0)]), np.array([True]), t,
+                              distance=None if distance is None else np.array([distance]))
+        return std[0]
+    fixed = run(np.full(45, 80.0), ts)[-1][1][0]
+    assert final_std(None) == pytest.approx(fixed)
+    assert final_std(80.0) < 0.3 * fixed
+    assert final_std(10.0) > final_std(80.0)
+
+
 def test_noise_gives_a_rate_consistent_with_zero():
     ts = np.arange(45) / FPS
     rates = [run(np.full(45, 60.0), ts, noise=0.5, seed=s)[-1] for s in range(20)]
@@ -68,7 +96,7 @@ def test_no_measurement_before_the_first_valid_box_and_restart():
     assert rate[0] == 0.0 and std[0] == pytest.approx(1.0)
 
 
-@pytest.mark.parametrize("kw", [{"pixel_std": 0}, {"process_std": -1}, {"forget_s": math.nan}])
+@pytest.mark.parametrize("kw", [{"pixel_std": 0}, {"process_std": -1}, {"forget_s": math.nan}, {"accel_std": 0}])
 def test_bad_settings_are_refused(kw):
     with pytest.raises(ValueError):
         ExpansionFilter(**kw)
