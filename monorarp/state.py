@@ -99,8 +99,8 @@ class StateEstimator:
                  bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
                  bias_tau_s: float = 1.0, offset_learn_margin_px: float | None = None,
                  max_inward_offset_m: float | None = 0.3, expansion_process_std: float = 1.0,
-                 expansion_accel_std: float | None = 4.5, expansion_constant_speed: bool = True,
-                 expansion_pixel_std: float = 1.0,
+                 expansion_accel_std: float | None = None, expansion_constant_speed: bool = False,
+                 expansion_pixel_std: float = 0.5,
                  pixel_std_per_height: float = 0.01, max_unmeasured_s: float = 0.5,
                  min_vehicle_width_m: float = 1.4, near_border_frac: float = 0.05) -> None:
         if velocity not in ("kalman", "difference"):

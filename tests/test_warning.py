@@ -146,17 +146,17 @@ def test_lateral_velocity_of_a_young_filter_is_not_trusted_when_asked():
 def test_looming_veto_needs_the_box_to_grow():
     # 50 m ahead read closing at 20 m/s (TTC ~2.4 s): a threat only if the box's width grows accordingly
     far = dict(v_x_std=0.1, v_y_std=0.5)
-    w = fcw()
+    w = fcw(looming_share=0.6)
     assert w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.0, expansion_rate_std=0.05)}) == {}
     assert 1 in w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.4, expansion_rate_std=0.05)})
-    # the rate must reach looming_share (0.6) of the claimed closing speed over distance, here
+    # with looming_share 0.6 the rate must reach that share of the claimed closing speed over distance, here
     # 0.6 x 19.75 / 50 = 0.237 /s (v_y shrunk by 0.5 sigma), within 1 sigma
     assert 1 in w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.26, expansion_rate_std=0.05)})
     assert w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.15, expansion_rate_std=0.05)}) == {}
-    # without the share, a rate within 1 sigma of the floor 1 / (2.5 x 3 s) = 0.133 /s is consistent
-    assert 1 in fcw(looming_share=0.0).threats(
+    # without the share (the default), a rate within 1 sigma of the floor 1 / (2.5 x 3 s) = 0.133 /s is consistent
+    assert 1 in fcw().threats(
         {1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)})
-    assert fcw().threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)}) == {}
+    assert w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)}) == {}
     # a vehicle moving sideways for sure (a cut-in, 10 m ahead, 2.5 m/s towards the ego lane) turns and
     # its width shrinks with its yaw: only the floor is asked of it
     cut_in = dict(d_x=3.7, d_y=10.0, v_x=-2.5, v_y=-5.0, v_x_std=0.1, v_y_std=0.1, expansion_rate=0.1,
