@@ -4,7 +4,7 @@ Each of N worker processes (``spawn``: a fresh interpreter, no forked copy of an
 context, and the driver is its parent, see below) runs one task at a time, sent over its own pipe, so the driver always knows
 which run a worker holds. Then:
 
-* a worker that dies (SIGKILL, segfault, OOM killer) fails exactly its run, with the
+* a worker that is killed (SIGKILL, OOM killer) fails exactly its run, with the
   cause ("worker process died (killed by SIGKILL)"); a new worker takes its place and
   the other workers' runs go on untouched;
 * a worker that crashes in native code (SIGSEGV, SIGABRT, SIGBUS, SIGILL, SIGFPE: a fault in
