@@ -93,6 +93,19 @@ def test_box_at_the_image_border_and_degenerate_boxes_are_left_alone():
     np.testing.assert_array_equal(out, boxes)
 
 
+def test_box_of_a_vehicle_cut_by_the_bottom_border_ends_at_the_border():
+    img = scene(250.0)                                          # tyres 10 px below the last row (239)
+    boxes = np.array([[100.0, 199.0, 160.0, 238.7],          # the net stops short of the border
+                      [100.0, 199.0, 160.0, 236.0]])         # 3.5 px short: out of the 2.4 px search
+    out, moved = refine_bottom(img, boxes)
+    assert moved.tolist() == [True, False]
+    assert out[0, 3] == 239.5 and np.array_equal(out[1], boxes[1])
+    bottom = 237.6                                             # road under the tyres, 1.4 px above the border
+    img = scene(bottom)
+    out, moved = refine_bottom(img, np.array([[100.0, bottom - 40.0, 160.0, bottom - 0.6]]))
+    assert moved[0] and abs(out[0, 3] - bottom) <= 0.07          # the edge is found, not the border
+
+
 def test_vehicle_near_the_image_border_is_refined():
     img = scene(237.2, x1=-20.0, x2=40.0)                       # 2 px above the last row, cut on the left
     out, moved = refine_bottom(img, np.array([[-0.5, 197.0, 40.0, 236.0]]))

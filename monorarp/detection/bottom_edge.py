@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from monorarp.state_geometry import BORDER_TOL_PX
+
 
 @dataclass(frozen=True)
 class BottomEdgeParams:
@@ -31,6 +33,8 @@ class BottomEdgeParams:
     above: int = 3                 # rows just above a bottom transition's last vehicle row ...
     above_min: int = 2             # ... of which this many must differ from the road too
     max_cols: int = 32             # wider boxes: this many evenly spaced columns
+    border_px: float = BORDER_TOL_PX   # a box with no edge found whose bottom is this close to the
+                                       # image's bottom border is cut by it: its bottom becomes the border
 
 
 def refine_bottom(image: np.ndarray, boxes: np.ndarray,
@@ -39,7 +43,9 @@ def refine_bottom(image: np.ndarray, boxes: np.ndarray,
 
     ``image``: (H, W, 3) uint8 BGR, the image the boxes are in (continuous source pixels).
     Only ``y2`` changes. Boxes whose band does not fit in the image, or where no clear edge is
-    found, keep the detector's edge. All boxes are processed together: each box's band is
+    found, keep the detector's edge, except next to the image's bottom border: a box with no edge
+    found whose bottom lies within ``min(s, border_px)`` of the border is cut by it (the vehicle
+    goes on below the image) and ends at the border, ``H - 0.5``. All boxes are processed together: each box's band is
     gathered into a fixed (rows, columns) grid (columns evenly sampled, at most ``max_cols``;
     rows and columns outside its band masked), so the cost hardly grows with the box count.
     """
@@ -120,7 +126,10 @@ def refine_bottom(image: np.ndarray, boxes: np.ndarray,
     y = _masked_median(ys, sel)
     accept = enough & (np.abs(y - y2) <= s)
     out[k_ok[accept], 3] = y[accept]
-    moved[k_ok[accept]] = True
+    # no edge found next to the image's bottom border: the vehicle goes on below it (truncated)
+    cut = ~accept & (y2 >= h_img - 0.5 - np.minimum(s, p.border_px)) & (y2 < h_img - 0.5)
+    out[k_ok[cut], 3] = h_img - 0.5
+    moved[k_ok[accept | cut]] = True
     return out, moved
 
 
