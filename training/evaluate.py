@@ -79,15 +79,14 @@ def figures(boxes, scores, ds: Dataset) -> dict:
     out["bottom_edge_abs_err_p90_px"] = round(float(np.percentile(np.abs(err), 90)), 3) if err.size else None
     if ds.fine is not None and m.pairs:
         fine = [ds.fine_of(i) for i in range(len(ds.images))]
-        ef = np.array([boxes[i][d, 3] - fine[i][j, 3] for i, d, j in m.pairs])
-        ef = ef[np.isfinite(ef)]
+        ef_all = np.array([boxes[i][d, 3] - fine[i][j, 3] for i, d, j in m.pairs])
+        ef = ef_all[np.isfinite(ef_all)]
         out["bottom_edge_fine_abs_err_median_px"] = round(float(np.median(np.abs(ef))), 3)
         out["bottom_edge_fine_abs_err_p90_px"] = round(float(np.percentile(np.abs(ef), 90)), 3)
         out["bottom_edge_fine_count"] = int(ef.size)
         # boxes cut by the image's bottom border (truth bottom within BORDER_TOL_PX of it) have no
         # visible bottom edge and give no distance; the figure without them is the one that matters
         cut = np.array([fine[i][j, 3] >= ds.src_sizes[i, 1] - 0.5 - BORDER_TOL_PX for i, d, j in m.pairs])
-        ef_all = np.array([boxes[i][d, 3] - fine[i][j, 3] for i, d, j in m.pairs])
         vis = np.isfinite(ef_all) & ~cut
         out["bottom_edge_fine_abs_err_median_px_uncut"] = round(float(np.median(np.abs(ef_all[vis]))), 3)
         out["bottom_edge_fine_count_uncut"] = int(vis.sum())

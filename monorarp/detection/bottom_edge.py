@@ -45,9 +45,10 @@ def refine_bottom(image: np.ndarray, boxes: np.ndarray,
     Only ``y2`` changes. Boxes whose band does not fit in the image, or where no clear edge is
     found, keep the detector's edge, except next to the image's bottom border: a box with no edge
     found whose bottom lies within ``min(s, border_px)`` of the border is cut by it (the vehicle
-    goes on below the image) and ends at the border, ``H - 0.5``. All boxes are processed together: each box's band is
-    gathered into a fixed (rows, columns) grid (columns evenly sampled, at most ``max_cols``;
-    rows and columns outside its band masked), so the cost hardly grows with the box count.
+    goes on below the image) and ends at the border, ``H - 0.5``. All boxes are processed
+    together: each box's band is gathered into a fixed (rows, columns) grid (columns evenly
+    sampled, at most ``max_cols``; rows and columns outside its band masked), so the cost hardly
+    grows with the box count.
     """
     p = params
     out = np.array(boxes, dtype=np.float64).reshape(-1, 4)
