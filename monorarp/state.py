@@ -83,6 +83,10 @@ class StateEstimator:
         expansion_pixel_std: one-sigma (px) of each side edge of a box in that filter.
         expansion_constant_speed: that filter predicts a constant closing speed (the rate's own
             growth) instead of a constant rate.
+            Defaults 4.5 m/s^2, 1 px, True (the fourth tuning round's filter, default since the fifth:
+            docs/warning_tuning.md); ``expansion_accel_std=None, expansion_pixel_std=0.5,
+            expansion_constant_speed=False`` is the earlier constant-rate filter, whose sigma was 4x
+            too wide at 60-100 m for the looming veto to act there.
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -99,8 +103,8 @@ class StateEstimator:
                  bias_pixel_std: float | None = None, lateral_bias_pixel_std: float | None = None,
                  bias_tau_s: float = 1.0, offset_learn_margin_px: float | None = None,
                  max_inward_offset_m: float | None = 0.3, expansion_process_std: float = 1.0,
-                 expansion_accel_std: float | None = None, expansion_constant_speed: bool = False,
-                 expansion_pixel_std: float = 0.5,
+                 expansion_accel_std: float | None = 4.5, expansion_constant_speed: bool = True,
+                 expansion_pixel_std: float = 1.0,
                  pixel_std_per_height: float = 0.01, max_unmeasured_s: float = 0.5,
                  min_vehicle_width_m: float = 1.4, near_border_frac: float = 0.05) -> None:
         if velocity not in ("kalman", "difference"):

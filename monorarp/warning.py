@@ -3,7 +3,8 @@
 An object threatens when its rectangle reaches the ego's corridor within ``ttc_threshold_s`` at
 constant relative velocity (or acceleration), each motion term counted only beyond its
 uncertainty; implausible motion raises nothing, nor does a box that does not grow as the threat
-requires (looming: at least ``looming_share`` of the closing speed over the distance); no vehicle
+requires (looming: at least a floor rate, and from ``looming_far_distance_m`` on ``looming_far_share``
+of the closing speed over the distance; a vehicle turning in across the lane line is exempt); no vehicle
 ahead closes faster than the ego drives; a threat that persists for ``min_on_s`` starts an
 episode that lasts until none has been seen for ``hold_s``. Units: m, m/s, s; ego frame of
 :mod:`monorarp.camera`. The rules in full: docs/warning.md.
@@ -40,9 +41,13 @@ class ForwardCollisionWarning:
     calibrated Gaussian); ``accel_sigmas`` 2 (the braking lead's first warning 2.18 s -> 2.83-3.44 s,
     at the cost of more false alarms: 4 -> 6 in 3 min of nominal traffic). ``None``: no
     acceleration term. ``longitudinal_sigmas`` 0.5, ``looming_sigmas`` 1, ``ego_speed_margin_mps``
-    1: the third round (docs/scorecard.md, Tuning; 32 min of nominal traffic, 16 conflicts);
+    1: the third round (docs/warning_tuning.md; 32 min of nominal traffic, 16 conflicts);
     ``looming_share`` 0 (off): the fourth round's 0.6 cut false alarms but delayed braking leads and
-    cut-ins on the suites and CI (docs/scorecard.md, Fourth round), so it is opt-in.
+    cut-ins on the suites and CI (docs/warning_tuning.md, Fourth round), so it is opt-in.
+    ``looming_far_share`` 0.6 from ``looming_far_distance_m`` 35 m on (every vehicle that far, where a
+    pixel of bottom edge is metres of range) and ``looming_exempt_gap_m`` 0.5 (a vehicle moving
+    sideways within 0.5 m of the corridor, i.e. across the lane line, is turning in: its box width
+    changes with its yaw, so no looming veto): the fifth round (docs/warning_tuning.md, Fifth round).
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -56,6 +61,8 @@ class ForwardCollisionWarning:
                  camera_lateral_offset_m: float = 0.0, camera: CameraModel | None = None,
                  distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = 6.0,
                  looming_sigmas: float | None = 1.0, looming_factor: float = 2.5, looming_share: float = 0.0,
+                 looming_far_share: float = 0.6, looming_far_distance_m: float = 35.0,
+                 looming_exempt_gap_m: float | None = 0.5,
                  ego_speed_margin_mps: float | None = 1.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
@@ -80,6 +87,14 @@ class ForwardCollisionWarning:
         if not (np.isfinite(looming_share) and 0 <= looming_share <= 1):
             raise ValueError(f"looming_share must be in [0, 1], got {looming_share}")
         self.looming_share = float(looming_share)
+        if not (np.isfinite(looming_far_share) and 0 <= looming_far_share <= 1):
+            raise ValueError(f"looming_far_share must be in [0, 1], got {looming_far_share}")
+        if not (np.isfinite(looming_far_distance_m) and looming_far_distance_m >= 0):
+            raise ValueError(f"looming_far_distance_m must be >= 0, got {looming_far_distance_m}")
+        self.looming_far_share, self.looming_far_distance_m = float(looming_far_share), float(looming_far_distance_m)
+        if looming_exempt_gap_m is not None and not (np.isfinite(looming_exempt_gap_m) and looming_exempt_gap_m >= 0):
+            raise ValueError(f"looming_exempt_gap_m must be >= 0 or None, got {looming_exempt_gap_m}")
+        self.looming_exempt_gap_m = None if looming_exempt_gap_m is None else float(looming_exempt_gap_m)
         if ego_speed_margin_mps is not None and not (np.isfinite(ego_speed_margin_mps) and ego_speed_margin_mps >= 0):
             raise ValueError(f"ego_speed_margin_mps must be >= 0 or None, got {ego_speed_margin_mps}")
         self.ego_speed_margin_mps = None if ego_speed_margin_mps is None else float(ego_speed_margin_mps)
@@ -145,11 +160,19 @@ class ForwardCollisionWarning:
             rate = np.array([np.nan if o.expansion_rate is None else o.expansion_rate for o in s], dtype=float)
             rate_std = np.array([0.0 if o.expansion_rate_std is None else o.expansion_rate_std for o in s])
             # a vehicle moving sideways (a cut-in) turns, and its box's width changes with its yaw:
-            # the share of the claimed closing speed is asked only of one that keeps its lane
+            # the share of the claimed closing speed is asked only of one that keeps its lane, or of a
+            # far one (whose range, and so its lateral reading, a pixel of bottom edge moves by metres)
             share = np.where(v_x == 0.0, self.looming_share, 0.0)
+            far = d_y >= self.looming_far_distance_m
+            share = np.where(far, np.maximum(share, self.looming_far_share), share)
             need = np.maximum(1.0 / (self.looming_factor * self.ttc_threshold_s),
                               share * np.maximum(-v_y, 0.0) / np.maximum(d_y, 1.0))
-            plausible &= ~(rate + self.looming_sigmas * rate_std < need)   # no rate yet: no veto
+            veto = rate + self.looming_sigmas * rate_std < need   # no rate yet: no veto
+            if self.looming_exempt_gap_m is not None:    # turning in across the lane line: no veto
+                x_lo, x_hi, _, _ = object_extents(d_x, d_y, self.other_width_m, self.other_length_m)
+                gap = np.maximum(np.maximum(x_lo - self.ego_x[1], self.ego_x[0] - x_hi), 0.0)
+                veto &= (v_x == 0.0) | far | (gap > self.looming_exempt_gap_m)
+            plausible &= ~veto
         a_y = None
         if self.accel_sigmas is not None:
             a = np.array([0.0 if o.a_y is None else o.a_y for o in s], dtype=float)

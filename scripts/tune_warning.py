@@ -4,11 +4,12 @@ How the warning stage's defaults were chosen (``monorarp/warning.py``, ``monorar
 the detector and the tracker run once per run of a protocol (by default the tuning set,
 ``scenarios/fcw/tuning.yaml``, which shares no speed, gap or seed with a scorecard suite or
 the CI subset) and their tracks are cached; then each parameter set of the grid replays only
-the state estimator and the warning stage (milliseconds per run) and is scored with the
+the state estimator and the warning stage (a fraction of a second per run, in ``--workers``
+processes) and is scored with the
 scorecard's own rules: trials passed and false-alarm episodes in the nominal runs.
 
     python scripts/tune_warning.py [--protocol scenarios/fcw/tuning.yaml] [--cache DIR]
-        [--workers N] [--grid '{"state": {"pixel_std": [0.5, 1.0]}, "warning": {"lateral_sigmas": [2, 3]}}']
+        [--workers N] [--trials N] [--grid '{"state": {"pixel_std": [0.5, 1.0]}, "warning": {"lateral_sigmas": [2, 3]}}']
 
 Prints one line per parameter set. Needs the harness (renders the runs on first use).
 """
@@ -39,12 +40,13 @@ def tracks_key(task) -> str:
     return hashlib.sha256(json.dumps([task.scenario, made_by, task.frames], sort_keys=True).encode()).hexdigest()
 
 
-def cached_tracks(task, cache: Path) -> dict:
-    """{camera, frames: [(index, t, tracks)], truths} of one run, computed once."""
+def cached_tracks(task, cache: Path, load: bool = True) -> dict | None:
+    """{camera, frames: [(index, t, tracks)], truths} of one run, computed once (``load`` False: only make sure
+    the cache holds it)."""
     key = tracks_key(task)
     path = cache / f"{task.id}-{key[:12]}.pkl"
     if path.is_file():
-        return pickle.loads(path.read_bytes())
+        return pickle.loads(path.read_bytes()) if load else None
     scenario = parse_scenario(task.scenario)
     camera = scenario.camera.model()
     cfg = PipelineConfig.model_validate(task.pipeline)
@@ -90,30 +92,39 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--protocol", type=Path, default=Path("scenarios/fcw/tuning.yaml"))
     ap.add_argument("--cache", type=Path, default=Path(".cache/tune_warning"))
-    ap.add_argument("--workers", type=int, default=2, help="processes that compute missing tracks")
+    ap.add_argument("--workers", type=int, default=2, help="processes that compute missing tracks and replay")
+    ap.add_argument("--trials", type=int, default=None, help="trials per test (default: the protocol's)")
     ap.add_argument("--why", action="store_true", help="also print each false alarm's one-line cause")
     ap.add_argument("--grid", default='{"state": {}, "warning": {}}', help="JSON: stage -> parameter -> values")
     args = ap.parse_args()
-    trials, tasks = build_tasks(ScorecardOptions(protocol_files=[args.protocol], progress=False))
+    trials, tasks = build_tasks(ScorecardOptions(protocol_files=[args.protocol], trials=args.trials, progress=False))
     with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
-        cached = pool.starmap(cached_tracks, [(task, args.cache) for task in tasks], chunksize=1)
-    runs = list(zip(trials, cached))
-    for state_kw, warning_kw in grid_points(json.loads(args.grid)):
-        passed, n_tests, fa, hours, ttcs, why = 0, 0, 0, 0.0, [], []
-        for trial, data in runs:
-            m = replay(data, state_kw, warning_kw)
-            if trial.kind == "nominal":
-                fa += sum(e["false_alarm"] for e in m["episode_list"])
-                if args.why:
-                    why += [f"  {trial.key} seed {trial.trial}: {e['why']}" for e in m["episode_list"] if e["false_alarm"]]
-                hours += m["exposure_s"] / 3600
-                continue
-            n_tests += 1
-            passed += trial_passed(trial.kind, m, trial.required_ttc_s)
-            ttcs.append(f"{trial.test}:{'-' if m['first_warning_ttc_s'] is None else round(m['first_warning_ttc_s'], 2)}")
-        print(json.dumps({"state": state_kw, "warning": warning_kw}), f"trials passed {passed}/{n_tests}",
-              f"false alarms {fa} ({fa / hours:.0f}/h)", " ".join(ttcs), *why, sep="\n" if why else " ", flush=True)
+        pool.starmap(cached_tracks, [(task, args.cache, False) for task in tasks], chunksize=1)
+        for state_kw, warning_kw in grid_points(json.loads(args.grid)):
+            metrics = pool.starmap(replay_cached, [(task, args.cache, state_kw, warning_kw) for task in tasks], chunksize=4)
+            print(json.dumps({"state": state_kw, "warning": warning_kw}),
+                  *score_grid_point(trials, metrics, args.why), sep="\n" if args.why else " ", flush=True)
 
+
+def replay_cached(task, cache: Path, state_kw: dict, warning_kw: dict) -> dict:
+    """:func:`replay` of one task's cached tracks (a worker loads them itself: nothing big crosses processes)."""
+    return replay(cached_tracks(task, cache), state_kw, warning_kw)
+
+
+def score_grid_point(trials, metrics: list[dict], why: bool) -> list[str]:
+    """Trials passed, false alarms (per hour of the nominal runs) and first-warning TTCs of one parameter set."""
+    passed, n_tests, fa, hours, ttcs, causes = 0, 0, 0, 0.0, [], []
+    for trial, m in zip(trials, metrics):
+        if trial.kind == "nominal":
+            fa += sum(e["false_alarm"] for e in m["episode_list"])
+            causes += [f"  {trial.key} seed {trial.trial}: {e['why']}" for e in m["episode_list"] if e["false_alarm"]]
+            hours += m["exposure_s"] / 3600
+            continue
+        n_tests += 1
+        passed += trial_passed(trial.kind, m, trial.required_ttc_s)
+        ttcs.append(f"{trial.test}:{'-' if m['first_warning_ttc_s'] is None else round(m['first_warning_ttc_s'], 2)}")
+    rate = f"{fa / hours:.1f}/h over {hours:.2f} h" if hours > 0 else "no nominal runs"
+    return [f"trials passed {passed}/{n_tests}", f"false alarms {fa} ({rate})", " ".join(ttcs), *(causes if why else [])]
 
 if __name__ == "__main__":
     main()

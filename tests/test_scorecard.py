@@ -108,6 +108,18 @@ def test_pooled_risk_labels_by_horizon():
     assert out["1.5s"]["inverse_ttc"]["auroc"] < 1.0          # frames 15..19 positive at 1.5 s but scored 0
 
 
+def test_frame_arrays_score_the_truth_as_a_reference(tmp_path):
+    """per_frame.csv -> the estimators' scores and the truth's own 1/TTC (0 where no collision course)."""
+    from harness.scorecard.run import _frame_arrays
+    cols = "t,risk,risk_kind,baseline_ttc_risk,fcw_ttc_risk,risk_event,true_min_ttc"
+    rows = ["0.0,0.1,inverse_ttc,,0.0,0,", "0.1,0.5,inverse_ttc,,0.25,0,4.0", "0.2,2.0,inverse_ttc,,1.0,1,0.5"]
+    (tmp_path / "per_frame.csv").write_text("\n".join([cols, *rows]) + "\n")
+    out = _frame_arrays(tmp_path)
+    np.testing.assert_allclose(out["truth_reference"], [0.0, 0.25, 2.0])
+    np.testing.assert_allclose(out["inverse_ttc"], [0.1, 0.5, 2.0])
+    assert out["event"].tolist() == [False, False, True] and "monte_carlo" not in out
+
+
 def _frame(k, ttc_gt=None, active=False, episode=None, crashed=False, d_lat=0.0):
     truth = FrameTruth.from_json({"frame": k, "t": k / 10, "ego": {"speed": 20.0, "crashed": crashed},
                                   "objects": [{"id": 5, "box": [100, 100, 140, 130], "visibility": 1.0, "ttc": ttc_gt,

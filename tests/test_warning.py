@@ -153,9 +153,10 @@ def test_looming_veto_needs_the_box_to_grow():
     # 0.6 x 19.75 / 50 = 0.237 /s (v_y shrunk by 0.5 sigma), within 1 sigma
     assert 1 in w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.26, expansion_rate_std=0.05)})
     assert w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.15, expansion_rate_std=0.05)}) == {}
-    # without the share (the default), a rate within 1 sigma of the floor 1 / (2.5 x 3 s) = 0.133 /s is consistent
-    assert 1 in fcw().threats(
+    # without any share, a rate within 1 sigma of the floor 1 / (2.5 x 3 s) = 0.133 /s is consistent
+    assert 1 in fcw(looming_far_share=0.0).threats(
         {1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)})
+    assert fcw().threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)}) == {}
     assert w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)}) == {}
     # a vehicle moving sideways for sure (a cut-in, 10 m ahead, 2.5 m/s towards the ego lane) turns and
     # its width shrinks with its yaw: only the floor is asked of it
@@ -167,6 +168,28 @@ def test_looming_veto_needs_the_box_to_grow():
     assert 1 in w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far)})
     assert fcw(looming_sigmas=None).threats(
         {1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.0, expansion_rate_std=0.05)})
+
+
+def test_far_vehicles_must_loom_and_a_car_turning_in_is_exempt():
+    # by default, from 35 m on every vehicle must widen at 0.6 of its claimed closing speed over distance
+    near = ObjectState(1, 0.0, 25.0, 0.0, -10.0, v_x_std=0.1, v_y_std=0.5, expansion_rate=0.12, expansion_rate_std=0.05)
+    assert 1 in fcw().threats({1: near})                          # 25 m: only the floor (0.133 /s, within 1 sigma)
+    assert fcw(looming_far_distance_m=20.0).threats({1: near}) == {}   # 0.6 x 9.75 / 25 = 0.23 /s needed
+    # a next-lane car 60 m ahead read drifting in (a range error moves its lateral reading too): its
+    # lateral motion no longer exempts it from the share, as it does nearer
+    drift = ObjectState(1, -3.0, 60.0, 1.0, -25.0, v_x_std=0.1, v_y_std=0.5, expansion_rate=0.12, expansion_rate_std=0.03)
+    assert 1 in fcw(looming_far_share=0.0).threats({1: drift})
+    assert fcw().threats({1: drift}) == {}
+    # a car 10 m ahead across the lane line (0 m from the corridor) moving in: its width shrinks with its
+    # yaw, so no looming veto; the same motion 1.9 m out in the next lane is vetoed by the floor
+    turning = ObjectState(1, 1.6, 10.0, -1.5, -5.0, v_x_std=0.1, v_y_std=0.1, expansion_rate=-0.3, expansion_rate_std=0.05)
+    assert 1 in fcw().threats({1: turning})
+    assert fcw(looming_exempt_gap_m=None).threats({1: turning}) == {}
+    assert fcw().threats({1: ObjectState(1, 3.7, 10.0, -1.5, -5.0, v_x_std=0.1, v_y_std=0.1, expansion_rate=-0.3,
+                                         expansion_rate_std=0.05)}) == {}
+    for bad in ({"looming_far_share": 1.5}, {"looming_far_distance_m": -1.0}, {"looming_exempt_gap_m": -0.1}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            fcw(**bad)
 
 
 def test_closing_speed_is_capped_at_the_ego_speed():

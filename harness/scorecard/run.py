@@ -166,7 +166,8 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
 
 # ----------------------------------------------------------------------------- scoring
 def _frame_arrays(run_dir: Path) -> dict[str, np.ndarray] | None:
-    """``per_frame.csv`` -> t, event, and the risk scores (1/TTC, the fcw stage's 1/TTC; Monte Carlo where the run has it)."""
+    """``per_frame.csv`` -> t, event, and the risk scores (1/TTC, the fcw stage's 1/TTC; Monte Carlo where the run has it;
+    the true 1/TTC as ``truth_reference``)."""
     try:
         with open(run_dir / "per_frame.csv", newline="") as f:
             rows = list(csv.DictReader(f))
@@ -177,6 +178,8 @@ def _frame_arrays(run_dir: Path) -> dict[str, np.ndarray] | None:
         return np.array([float(r[name]) if r[name] not in ("", None) else np.nan for r in rows], dtype=float)
 
     out = {"t": col("t"), "event": col("risk_event") == 1}
+    true_ttc = col("true_min_ttc")     # no estimator: the truth's own 1/TTC, the ceiling of a 1/TTC score
+    out["truth_reference"] = np.where(np.isfinite(true_ttc), 1.0 / np.maximum(true_ttc, 1e-3), 0.0)
     if rows and rows[0].get("fcw_ttc_risk") not in ("", None):
         out["fcw_ttc"] = col("fcw_ttc_risk")
     mc = bool(rows) and rows[0]["risk_kind"] == "probability"
