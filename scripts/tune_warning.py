@@ -5,8 +5,8 @@ the detector and the tracker run once per run of a protocol (by default the tuni
 ``scenarios/fcw/tuning.yaml``, which shares no speed, gap or seed with a scorecard suite or
 the CI subset) and their tracks are cached; then each parameter set of the grid replays only
 the state estimator and the warning stage (a fraction of a second per run, in ``--workers``
-processes) and is scored with the
-scorecard's own rules: trials passed and false-alarm episodes in the nominal runs.
+processes) and is scored with the scorecard's own rules: trials passed and false-alarm episodes
+in the nominal runs.
 
     python scripts/tune_warning.py [--protocol scenarios/fcw/tuning.yaml] [--cache DIR]
         [--workers N] [--trials N] [--grid '{"state": {"pixel_std": [0.5, 1.0]}, "warning": {"lateral_sigmas": [2, 3]}}']
