@@ -156,6 +156,7 @@ class ForwardCollisionWarning:
         if self.max_raw_lateral_speed_mps is not None:
             raw_v_x = np.array([o.v_x for o in s], dtype=float)
             plausible &= ~(np.abs(raw_v_x) > self.max_raw_lateral_speed_mps)
+        x_lo, x_hi, y_lo, y_hi = object_extents(d_x, d_y, self.other_width_m, self.other_length_m)
         if self.looming_sigmas is not None:
             rate = np.array([np.nan if o.expansion_rate is None else o.expansion_rate for o in s], dtype=float)
             rate_std = np.array([0.0 if o.expansion_rate_std is None else o.expansion_rate_std for o in s])
@@ -169,7 +170,6 @@ class ForwardCollisionWarning:
                               share * np.maximum(-v_y, 0.0) / np.maximum(d_y, 1.0))
             veto = rate + self.looming_sigmas * rate_std < need   # no rate yet: no veto
             if self.looming_exempt_gap_m is not None:    # turning in across the lane line: no veto
-                x_lo, x_hi, _, _ = object_extents(d_x, d_y, self.other_width_m, self.other_length_m)
                 gap = np.maximum(np.maximum(x_lo - self.ego_x[1], self.ego_x[0] - x_hi), 0.0)
                 veto &= (v_x == 0.0) | far | (gap > self.looming_exempt_gap_m)
             plausible &= ~veto
@@ -178,7 +178,6 @@ class ForwardCollisionWarning:
             a = np.array([0.0 if o.a_y is None else o.a_y for o in s], dtype=float)
             a_std = np.array([0.0 if o.a_y_std is None else o.a_y_std for o in s], dtype=float)
             a_y = significant_lateral_velocity(a, a_std, self.accel_sigmas)
-        x_lo, x_hi, y_lo, y_hi = object_extents(d_x, d_y, self.other_width_m, self.other_length_m)
         ttc = time_to_collision(x_lo, x_hi, y_lo, y_hi, v_x, v_y, self.ego_x, self.ego_y, self.ttc_threshold_s,
                                 a_y=a_y)
         ttc = np.where(plausible, ttc, np.nan)

@@ -126,5 +126,6 @@ def score_grid_point(trials, metrics: list[dict], why: bool) -> list[str]:
     rate = f"{fa / hours:.1f}/h over {hours:.2f} h" if hours > 0 else "no nominal runs"
     return [f"trials passed {passed}/{n_tests}", f"false alarms {fa} ({rate})", " ".join(ttcs), *(causes if why else [])]
 
+
 if __name__ == "__main__":
     main()
