@@ -52,6 +52,11 @@ class StateEstimator:
         side_cut_lateral_std_mps: the lateral-velocity uncertainty (m/s) reported at least, with
             ``ObjectState.v_x_std``, while the box is cut by a side border (the lateral reading is then
             the near-edge model's, biased as the vehicle leaves the view).
+        side_band_frac: the same floor while the far edge of a box beside the centre line lies within
+            this fraction of the frame width of its side border (0: only when cut). A vehicle leaving
+            the view there has a far edge the tracker's box trails (7-14 px at 1920 px in the traces),
+            which reads as the vehicle drifting in at 2-3 m/s. Default 0.03 (the sixth tuning round,
+            docs/warning_tuning.md: 0.02-0.06 equal on the tuning set).
         forget_s: a track id unseen for this long (s) loses its history.
         edge_std_px: one-sigma (px) of the box's bottom-edge error that persists from frame to frame
             (a detector's and tracker's bias on a vehicle, which the filter, assuming white noise,
@@ -106,7 +111,8 @@ class StateEstimator:
                  expansion_accel_std: float | None = 4.5, expansion_constant_speed: bool = True,
                  expansion_pixel_std: float = 1.0,
                  pixel_std_per_height: float = 0.01, max_unmeasured_s: float = 0.5,
-                 min_vehicle_width_m: float = 1.4, near_border_frac: float = 0.05) -> None:
+                 min_vehicle_width_m: float = 1.4, near_border_frac: float = 0.05,
+                 side_band_frac: float = 0.03) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -149,6 +155,9 @@ class StateEstimator:
             if not (np.isfinite(val) and val >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {val}")
         self.min_vehicle_width_m, self.near_border_frac = float(min_vehicle_width_m), float(near_border_frac)
+        if not (np.isfinite(side_band_frac) and 0 <= side_band_frac < 0.5):
+            raise ValueError(f"side_band_frac must be in [0, 0.5), got {side_band_frac}")
+        self.side_band_frac = float(side_band_frac)
         self.robust_sigmas = None if robust_sigmas is None else float(robust_sigmas)
         self.bias_tau_s = float(bias_tau_s)
         if bias_pixel_std is None:
@@ -397,6 +406,10 @@ class StateEstimator:
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
+            if self.side_band_frac > 0:
+                band = border_flags(self.camera, boxes, self.side_band_frac * self.camera.width)
+                outer = (band[:, 1] & (boxes[:, 0] > self.camera.cx)) | (band[:, 0] & (boxes[:, 2] < self.camera.cx))
+                std[outer, 2] = np.maximum(std[outer, 2], self.side_cut_lateral_std_mps)
             std[:, 1] = self.distance_std(out[:, 1], std[:, 1], horizon_std_px, side_cut)
             if self._ground_std is not None:
                 std[:, 1] = np.hypot(std[:, 1], self._ground_std)

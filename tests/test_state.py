@@ -508,6 +508,30 @@ def test_a_narrow_box_near_the_side_border_is_taken_as_cut(level_cam):
     assert StateEstimator(level_cam, min_vehicle_width_m=0.0).border_cut_boxes(np.array([short]))[0][2] == 620.0
 
 
+def test_a_far_edge_in_the_side_band_gets_the_side_cut_lateral_uncertainty(level_cam):
+    """A next-lane car whose far edge lies within side_band_frac of the border (not cut) reports at
+    least side_cut_lateral_std_mps of lateral-velocity uncertainty; one further in does not."""
+    def v_x_std(box, **kw):
+        est = StateEstimator(level_cam, **kw)
+        for k in range(10):
+            out = est.update([Track(1, box)], k / FPS)
+        return out[1].v_x_std
+
+    near = vehicle_box(level_cam, 3.7, 10.0)
+    shift = 639.5 - 10.0 - near[2]          # 10 px from the border: inside 0.03 * 640 = 19 px, outside 4 px
+    in_band = (near[0] + shift, near[1], near[2] + shift, near[3])
+    away = vehicle_box(level_cam, 3.7, 20.0)
+    assert 639.5 - away[2] > 0.03 * 640
+    assert v_x_std(in_band) >= 2.0
+    assert v_x_std(in_band, side_band_frac=0.0) < 1.0
+    assert v_x_std(away) < 1.0
+    left = (639.0 - in_band[2], in_band[1], 639.0 - in_band[0], in_band[3])   # mirrored: the left border
+    assert v_x_std(left) >= 2.0
+    for bad in (-0.1, 0.5, float("nan")):
+        with pytest.raises(ValueError, match="side_band_frac"):
+            StateEstimator(level_cam, side_band_frac=bad)
+
+
 def test_border_tolerance_scales_with_the_frame_width():
     cam = CameraModel.from_fov(1920, 1080, 70.0, 1.6, pitch_rad=math.radians(4.0))
     assert StateEstimator(cam).border_tol_px == pytest.approx(12.0)
