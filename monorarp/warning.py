@@ -48,6 +48,9 @@ class ForwardCollisionWarning:
     pixel of bottom edge is metres of range) and ``looming_exempt_gap_m`` 0.5 (a vehicle moving
     sideways within 0.5 m of the corridor, i.e. across the lane line, is turning in: its box width
     changes with its yaw, so no looming veto): the fifth round (docs/warning_tuning.md, Fifth round).
+    ``looming_side_share`` 0.6: a vehicle moving sideways but still beyond that gap (in its own lane,
+    read drifting in) must widen at 0.6 of its closing speed over its distance, as a far one must: the
+    sixth round (docs/warning_tuning.md, Sixth round).
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -62,7 +65,7 @@ class ForwardCollisionWarning:
                  distance_sigmas: float = 0.0, max_raw_lateral_speed_mps: float | None = 6.0,
                  looming_sigmas: float | None = 1.0, looming_factor: float = 2.5, looming_share: float = 0.0,
                  looming_far_share: float = 0.6, looming_far_distance_m: float = 35.0,
-                 looming_exempt_gap_m: float | None = 0.5,
+                 looming_exempt_gap_m: float | None = 0.5, looming_side_share: float = 0.6,
                  ego_speed_margin_mps: float | None = 1.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
@@ -95,6 +98,9 @@ class ForwardCollisionWarning:
         if looming_exempt_gap_m is not None and not (np.isfinite(looming_exempt_gap_m) and looming_exempt_gap_m >= 0):
             raise ValueError(f"looming_exempt_gap_m must be >= 0 or None, got {looming_exempt_gap_m}")
         self.looming_exempt_gap_m = None if looming_exempt_gap_m is None else float(looming_exempt_gap_m)
+        if not (np.isfinite(looming_side_share) and 0 <= looming_side_share <= 1):
+            raise ValueError(f"looming_side_share must be in [0, 1], got {looming_side_share}")
+        self.looming_side_share = float(looming_side_share)
         if ego_speed_margin_mps is not None and not (np.isfinite(ego_speed_margin_mps) and ego_speed_margin_mps >= 0):
             raise ValueError(f"ego_speed_margin_mps must be >= 0 or None, got {ego_speed_margin_mps}")
         self.ego_speed_margin_mps = None if ego_speed_margin_mps is None else float(ego_speed_margin_mps)
@@ -161,16 +167,20 @@ class ForwardCollisionWarning:
             rate = np.array([np.nan if o.expansion_rate is None else o.expansion_rate for o in s], dtype=float)
             rate_std = np.array([0.0 if o.expansion_rate_std is None else o.expansion_rate_std for o in s])
             # a vehicle moving sideways (a cut-in) turns, and its box's width changes with its yaw:
-            # the share of the claimed closing speed is asked only of one that keeps its lane, or of a
-            # far one (whose range, and so its lateral reading, a pixel of bottom edge moves by metres)
+            # the share of the claimed closing speed is asked of one that keeps its lane, of a far one
+            # (whose range, and so its lateral reading, a pixel of bottom edge moves by metres), and of
+            # one read moving sideways that is still beyond the lane line (looming_side_share)
             share = np.where(v_x == 0.0, self.looming_share, 0.0)
             far = d_y >= self.looming_far_distance_m
             share = np.where(far, np.maximum(share, self.looming_far_share), share)
+            gap = np.maximum(np.maximum(x_lo - self.ego_x[1], self.ego_x[0] - x_hi), 0.0)
+            if self.looming_side_share > 0:   # moving sideways but still beyond the lane line
+                beyond = (v_x != 0.0) & (gap > (0.0 if self.looming_exempt_gap_m is None else self.looming_exempt_gap_m))
+                share = np.where(beyond, np.maximum(share, self.looming_side_share), share)
             need = np.maximum(1.0 / (self.looming_factor * self.ttc_threshold_s),
                               share * np.maximum(-v_y, 0.0) / np.maximum(d_y, 1.0))
             veto = rate + self.looming_sigmas * rate_std < need   # no rate yet: no veto
             if self.looming_exempt_gap_m is not None:    # turning in across the lane line: no veto
-                gap = np.maximum(np.maximum(x_lo - self.ego_x[1], self.ego_x[0] - x_hi), 0.0)
                 veto &= (v_x == 0.0) | far | (gap > self.looming_exempt_gap_m)
             plausible &= ~veto
         a_y = None

@@ -158,12 +158,13 @@ def test_looming_veto_needs_the_box_to_grow():
         {1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)})
     assert fcw().threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)}) == {}
     assert w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far, expansion_rate=0.09, expansion_rate_std=0.05)}) == {}
-    # a vehicle moving sideways for sure (a cut-in, 10 m ahead, 2.5 m/s towards the ego lane) turns and
-    # its width shrinks with its yaw: only the floor is asked of it
+    # looming_share is asked only of a vehicle keeping its lane: one moving sideways for sure (10 m ahead,
+    # 2.5 m/s towards the ego lane) is asked looming_side_share instead (off here: only the floor)
     cut_in = dict(d_x=3.7, d_y=10.0, v_x=-2.5, v_y=-5.0, v_x_std=0.1, v_y_std=0.1, expansion_rate=0.1,
                   expansion_rate_std=0.05)
-    assert 1 in w.threats({1: ObjectState(1, **cut_in)})
-    assert w.threats({1: ObjectState(1, **{**cut_in, "d_x": 0.0, "v_x": 0.0})}) == {}
+    w_lane = fcw(looming_share=0.6, looming_side_share=0.0)
+    assert 1 in w_lane.threats({1: ObjectState(1, **cut_in)})
+    assert w_lane.threats({1: ObjectState(1, **{**cut_in, "d_x": 0.0, "v_x": 0.0})}) == {}
     # none measured: no veto
     assert 1 in w.threats({1: ObjectState(1, 0.0, 50.0, 0.0, -20.0, **far)})
     assert fcw(looming_sigmas=None).threats(
@@ -178,7 +179,7 @@ def test_far_vehicles_must_loom_and_a_car_turning_in_is_exempt():
     # a next-lane car 60 m ahead read drifting in (a range error moves its lateral reading too): its
     # lateral motion no longer exempts it from the share, as it does nearer
     drift = ObjectState(1, -3.0, 60.0, 1.0, -25.0, v_x_std=0.1, v_y_std=0.5, expansion_rate=0.12, expansion_rate_std=0.03)
-    assert 1 in fcw(looming_far_share=0.0).threats({1: drift})
+    assert 1 in fcw(looming_far_share=0.0, looming_side_share=0.0).threats({1: drift})
     assert fcw().threats({1: drift}) == {}
     # a car 10 m ahead across the lane line (0 m from the corridor) moving in: its width shrinks with its
     # yaw, so no looming veto; the same motion 1.9 m out in the next lane is vetoed by the floor
@@ -190,6 +191,24 @@ def test_far_vehicles_must_loom_and_a_car_turning_in_is_exempt():
     for bad in ({"looming_far_share": 1.5}, {"looming_far_distance_m": -1.0}, {"looming_exempt_gap_m": -0.1}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             fcw(**bad)
+
+
+def test_a_next_lane_car_read_drifting_in_must_loom():
+    # 10 m ahead in the next lane (1.7 m beyond the corridor) read moving in at 2.5 m/s and closing at
+    # 7 m/s: its box must widen at 0.6 x 7 / 10 = 0.42 /s; at 0.30 +- 0.05 it is not that car
+    def drifting(rate):
+        return {1: ObjectState(1, 3.5, 10.0, -2.5, -7.0, v_x_std=0.1, v_y_std=0.1, expansion_rate=rate,
+                               expansion_rate_std=0.05)}
+    assert fcw().threats(drifting(0.30)) == {}
+    assert 1 in fcw(looming_side_share=0.0).threats(drifting(0.30))   # only the floor (0.133 /s)
+    assert 1 in fcw().threats(drifting(0.45))                          # it widens as claimed
+    # across the lane line (within looming_exempt_gap_m) it is turning in: exempt, as before
+    crossing = {1: ObjectState(1, 1.6, 10.0, -2.5, -7.0, v_x_std=0.1, v_y_std=0.1, expansion_rate=0.30,
+                               expansion_rate_std=0.05)}
+    assert 1 in fcw().threats(crossing)
+    for bad in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="looming_side_share"):
+            fcw(looming_side_share=bad)
 
 
 def test_closing_speed_is_capped_at_the_ego_speed():
