@@ -1,7 +1,8 @@
 """Scoring of one run: its results against the truth -> metrics, per-object records and per-frame rows.
 
 Besides :func:`harness.scoring.evaluate.evaluate`, a run is scored against the paper's 1/TTC
-risk on the same states (when its risk estimator is another one) and says where its risk
+risk on the same states (when its risk estimator is another one), and on the adverse-manoeuvre
+1/TTC (:class:`monorarp.risk.ManoeuvreTTCRisk`, for the scorecard's risk table), and says where its risk
 stage got the ego speed from (estimator, true speed with ``gps_speed``, or its own setting).
 """
 
@@ -31,10 +32,12 @@ class RunScore:
     eval_config: EvalConfig
     baseline: list[RiskEstimate] | None
     fcw_risk: list[float] | None = None
+    manoeuvre_risk: list[float] | None = None
 
     def frame_rows(self) -> list[dict]:
         """The rows of ``per_frame.csv`` (:func:`harness.scoring.evaluate.frame_rows`)."""
-        return frame_rows(self.truths, self.results, self.eval_config, self.baseline, self.fcw_risk)
+        return frame_rows(self.truths, self.results, self.eval_config, self.baseline, self.fcw_risk,
+                          self.manoeuvre_risk)
 
 
 def score_run(truths: list[FrameTruth], results: list[FrameResult], cfg: PipelineConfig, pipeline: Pipeline,
@@ -47,7 +50,8 @@ def score_run(truths: list[FrameTruth], results: list[FrameResult], cfg: Pipelin
                                 ego_speed_method=None if cfg.ego_speed is None else cfg.ego_speed.name,
                                 fcw_threshold_s=getattr(pipeline.warning, "ttc_threshold_s", None))
     metrics["risk"]["ego_speed_sources"] = ego_speed_sources(results, pipeline, gps_speed)
-    return RunScore(metrics, records, truths, results, eval_config, baseline, fcw_ttc_risk(results, pipeline))
+    return RunScore(metrics, records, truths, results, eval_config, baseline, fcw_ttc_risk(results, pipeline),
+                    manoeuvre_ttc_risk(results, camera))
 
 
 def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[RiskEstimate] | None:
@@ -56,6 +60,12 @@ def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[R
         return None
     ttc = build("risk", "ttc", camera=camera)
     return [ttc.assess(r.states, r.t) for r in results]
+
+
+def manoeuvre_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[float]:
+    """Per frame, the adverse-manoeuvre 1/TTC (1/s) on the run's states, with its defaults."""
+    stage = build("risk", "manoeuvre_ttc", camera=camera)
+    return [stage.assess(r.states, r.t).risk for r in results]
 
 
 def fcw_ttc_risk(results: list[FrameResult], pipeline: Pipeline) -> list[float] | None:

@@ -27,6 +27,7 @@ BUILTINS: dict[str, dict[str, str]] = {
     },
     "risk": {
         "ttc": "monorarp.risk:TTCRiskEstimator",
+        "manoeuvre_ttc": "monorarp.risk:ManoeuvreTTCRisk",
         "monte_carlo": "monorarp.risk_mc.estimator:MonteCarloRisk",
     },
     "ego_speed": {

@@ -7,7 +7,7 @@ import pytest
 
 from monorarp.camera import CameraModel
 from monorarp.registry import create
-from monorarp.risk import TTCRiskEstimator
+from monorarp.risk import ManoeuvreTTCRisk, TTCRiskEstimator
 from monorarp.types import ObjectState
 
 
@@ -80,3 +80,58 @@ def test_max_over_objects_and_floor():
     est = r.assess(states, 0.0)
     assert est.ttc[2] == 0.0 and est.risk == pytest.approx(10.0)
     assert r.assess({}, 0.0).risk == 0.0
+
+
+def simulate_manoeuvre_ttc(s: ObjectState, brake: float, lateral: float, W=1.8, L=4.5, horizon=10.0, dt=1e-4):
+    """Forward simulation of the hypothesis: the other brakes at ``brake`` and moves towards the ego's centre
+    line at ``lateral``; once its rear has reached the ego's front it stays in contact (a stopped wreck)."""
+    t = np.arange(0.0, horizon + dt, dt)
+    x = s.d_x - np.sign(s.d_x) * lateral * t
+    y = s.d_y + s.v_y * t - brake * t * t / 2
+    ex, ey = (-0.9, 0.9), (-2.25, 2.25)
+    y_touch = np.maximum.accumulate(y < ey[1]) if s.d_y >= ey[1] else (y < ey[1]) & (y + L > ey[0])
+    hit = (x - W / 2 < ex[1]) & (x + W / 2 > ex[0]) & y_touch
+    return float(t[np.argmax(hit)]) if hit.any() else None
+
+
+def test_manoeuvre_ttc_of_a_lead_at_the_ego_speed_is_the_braking_distance_time():
+    gap = 15.0 - 4.5 / 2
+    est = ManoeuvreTTCRisk(brake_mps2=4.0).assess({1: ObjectState(1, 0.0, 15.0, 0.0, 0.0)})
+    assert est.ttc[1] == pytest.approx(np.sqrt(2 * gap / 4.0))       # gap = b t^2 / 2
+    assert TTCRiskEstimator().assess({1: ObjectState(1, 0.0, 15.0, 0.0, 0.0)}).risk == 0.0
+
+
+def test_manoeuvre_ttc_of_a_next_lane_car_is_its_drift_time():
+    # lane +1 (3.5 m), 5 m ahead and closing at 1 m/s: at 0.5 m/s it reaches the ego's side (0.9 m)
+    # after (3.5 - 0.9 - 0.9) / 0.5 = 3.4 s, its rear at the ego's front long before
+    s = ObjectState(1, 3.5, 5.0, 0.0, -1.0)
+    est = ManoeuvreTTCRisk(brake_mps2=4.0, lateral_mps=0.5).assess({1: s})
+    assert est.ttc[1] == pytest.approx(3.4)
+    assert ManoeuvreTTCRisk(lateral_mps=0.0).assess({1: s}).ttc[1] is None
+
+
+def test_manoeuvre_ttc_without_a_manoeuvre_is_the_constant_velocity_ttc():
+    rng = np.random.default_rng(7)
+    states = {i: ObjectState(i, rng.uniform(-1, 1), rng.uniform(3, 60), 0.0, rng.uniform(-15, 5)) for i in range(30)}
+    assert ManoeuvreTTCRisk(brake_mps2=0.0, lateral_mps=0.0).assess(states).ttc == TTCRiskEstimator().assess(states).ttc
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_manoeuvre_ttc_matches_forward_simulation(seed):
+    rng = np.random.default_rng(seed)
+    brake, lateral = rng.uniform(1, 8), rng.uniform(0.2, 1.5)
+    states = {i: ObjectState(i, rng.uniform(-8, 8), rng.uniform(3, 60), rng.uniform(-2, 2), rng.uniform(-15, 5))
+              for i in range(20)}
+    est = ManoeuvreTTCRisk(brake_mps2=brake, lateral_mps=lateral).assess(states)
+    for i, s in states.items():
+        ref = simulate_manoeuvre_ttc(s, brake, lateral)
+        if ref is None:
+            assert est.ttc[i] is None
+        else:
+            assert est.ttc[i] == pytest.approx(ref, abs=5e-4)
+
+
+@pytest.mark.parametrize("kw", [{"brake_mps2": -1.0}, {"lateral_mps": float("nan")}])
+def test_manoeuvre_ttc_rejects_bad_settings(kw):
+    with pytest.raises(ValueError, match=next(iter(kw))):
+        create("risk", "manoeuvre_ttc", **kw)

@@ -111,12 +111,13 @@ def test_pooled_risk_labels_by_horizon():
 def test_frame_arrays_score_the_truth_as_a_reference(tmp_path):
     """per_frame.csv -> the estimators' scores and the truth's own 1/TTC (0 where no collision course)."""
     from harness.scorecard.run import _frame_arrays
-    cols = "t,risk,risk_kind,baseline_ttc_risk,fcw_ttc_risk,risk_event,true_min_ttc"
-    rows = ["0.0,0.1,inverse_ttc,,0.0,0,", "0.1,0.5,inverse_ttc,,0.25,0,4.0", "0.2,2.0,inverse_ttc,,1.0,1,0.5"]
+    cols = "t,risk,risk_kind,baseline_ttc_risk,fcw_ttc_risk,manoeuvre_ttc_risk,risk_event,true_min_ttc"
+    rows = ["0.0,0.1,inverse_ttc,,0.0,0.3,0,", "0.1,0.5,inverse_ttc,,0.25,0.6,0,4.0", "0.2,2.0,inverse_ttc,,1.0,2.5,1,0.5"]
     (tmp_path / "per_frame.csv").write_text("\n".join([cols, *rows]) + "\n")
     out = _frame_arrays(tmp_path)
     np.testing.assert_allclose(out["truth_reference"], [0.0, 0.25, 2.0])
     np.testing.assert_allclose(out["inverse_ttc"], [0.1, 0.5, 2.0])
+    np.testing.assert_allclose(out["manoeuvre_ttc"], [0.3, 0.6, 2.5])
     assert out["event"].tolist() == [False, False, True] and "monte_carlo" not in out
 
 

@@ -166,7 +166,8 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
 
 # ----------------------------------------------------------------------------- scoring
 def _frame_arrays(run_dir: Path) -> dict[str, np.ndarray] | None:
-    """``per_frame.csv`` -> t, event, and the risk scores (1/TTC, the fcw stage's 1/TTC; Monte Carlo where the run has it;
+    """``per_frame.csv`` -> t, event, and the risk scores (1/TTC, the fcw stage's 1/TTC, the adverse-manoeuvre 1/TTC;
+    Monte Carlo where the run has it;
     the true 1/TTC as ``truth_reference``)."""
     try:
         with open(run_dir / "per_frame.csv", newline="") as f:
@@ -182,6 +183,8 @@ def _frame_arrays(run_dir: Path) -> dict[str, np.ndarray] | None:
     out["truth_reference"] = np.where(np.isfinite(true_ttc), 1.0 / np.maximum(true_ttc, 1e-3), 0.0)
     if rows and rows[0].get("fcw_ttc_risk") not in ("", None):
         out["fcw_ttc"] = col("fcw_ttc_risk")
+    if rows and rows[0].get("manoeuvre_ttc_risk") not in ("", None):
+        out["manoeuvre_ttc"] = col("manoeuvre_ttc_risk")
     mc = bool(rows) and rows[0]["risk_kind"] == "probability"
     if mc:
         out["monte_carlo"], out["inverse_ttc"] = col("risk"), col("baseline_ttc_risk")

@@ -15,7 +15,8 @@
   frames whose window runs past the run's end excluded unless already positive;
   AUROC (Mann-Whitney) and average precision (step-wise, as scikit-learn's
   ``average_precision_score``) of the 1/TTC risk, of the ``fcw`` warning stage's 1/TTC
-  (``fcw_ttc``: its in-path test with its sigma margins and vetoes, within 10 s) and, where the
+  (``fcw_ttc``: its in-path test with its sigma margins and vetoes, within 10 s), of the
+  adverse-manoeuvre 1/TTC (``manoeuvre_ttc``, :class:`monorarp.risk.ManoeuvreTTCRisk`) and, where the
   runs have it, the Monte Carlo probability, at each horizon. ``truth_reference`` scores the
   truth's own 1/TTC (no estimator): what a perfect state estimate would give a 1/TTC score.
 """
@@ -104,7 +105,7 @@ def pooled_risk(runs: Sequence[Mapping[str, np.ndarray]], horizons_s: Sequence[f
     """AUROC and AP per horizon and estimator over runs' per-frame arrays.
 
     Each run: ``t`` (s), ``event`` (bool), and one score array per estimator name
-    (``inverse_ttc``, ``monte_carlo``, ``fcw_ttc``; an estimator missing from some run is scored on
+    (``inverse_ttc``, ``monte_carlo``, ``fcw_ttc``, ``manoeuvre_ttc``; an estimator missing from some run is scored on
     the runs that have it).
     """
     out: dict = {}

@@ -368,12 +368,13 @@ def risk_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult], c
 
 
 FRAME_COLUMNS = ("frame", "t", "ego_speed_est", "ego_speed_gt", "risk", "risk_kind", "risk_probability",
-                 "baseline_ttc_risk", "fcw_ttc_risk", "risk_event", "risk_label", "warning_active", "warning_track",
-                 "warning_ttc", "ego_crashed", "true_min_ttc")
+                 "baseline_ttc_risk", "fcw_ttc_risk", "manoeuvre_ttc_risk", "risk_event", "risk_label",
+                 "warning_active", "warning_track", "warning_ttc", "ego_crashed", "true_min_ttc")
 
 
 def frame_rows(truths: Sequence[FrameTruth], results: Sequence[FrameResult], cfg: EvalConfig,
-               baseline: Sequence[RiskEstimate] | None = None, fcw_risk: Sequence[float] | None = None) -> list[dict]:
+               baseline: Sequence[RiskEstimate] | None = None, fcw_risk: Sequence[float] | None = None,
+               manoeuvre_risk: Sequence[float] | None = None) -> list[dict]:
     """One row per frame (``per_frame.csv``): ego speed estimate/truth (m/s), risk, its label (nan = excluded),
     the warning decision (active, track, its TTC) and the truth's crash flag and lowest TTC (s)."""
     events, labels = risk_labels(truths, cfg)
@@ -386,6 +387,7 @@ def frame_rows(truths: Sequence[FrameTruth], results: Sequence[FrameResult], cfg
                      "risk_kind": res.risk.kind, "risk_probability": float(prob[k]),
                      "baseline_ttc_risk": NAN if baseline is None else float(baseline[k].risk),
                      "fcw_ttc_risk": NAN if fcw_risk is None else float(fcw_risk[k]),
+                     "manoeuvre_ttc_risk": NAN if manoeuvre_risk is None else float(manoeuvre_risk[k]),
                      "risk_event": bool(events[k]), "risk_label": labels[k],
                      "warning_active": bool(res.warning.active), "warning_track": res.warning.track_id,
                      "warning_ttc": _f(res.warning.ttc), "ego_crashed": tr.ego.crashed,
