@@ -16,6 +16,7 @@ from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, PipelineConfig
 from monorarp.registry import build, uses
+from monorarp.risk import TTCRiskEstimator
 from monorarp.ttc import HORIZON_S
 from monorarp.types import FrameResult, RiskEstimate
 from monorarp.warning import ForwardCollisionWarning
@@ -44,7 +45,7 @@ def score_run(truths: list[FrameTruth], results: list[FrameResult], cfg: Pipelin
               camera: CameraModel, eval_config: EvalConfig, wall_time_s: float, run_info: dict,
               gps_speed: bool) -> RunScore:
     """Score ``results`` against ``truths`` (the same frames, in order); ``wall_time_s``: the pipeline's."""
-    baseline = baseline_ttc_risk(results, camera)
+    baseline = baseline_ttc_risk(results, camera, pipeline)
     metrics, records = evaluate(truths, results, eval_config, wall_time_s=wall_time_s, run_info=run_info,
                                 camera=camera, baseline_risk=baseline,
                                 ego_speed_method=None if cfg.ego_speed is None else cfg.ego_speed.name,
@@ -54,9 +55,13 @@ def score_run(truths: list[FrameTruth], results: list[FrameResult], cfg: Pipelin
                     manoeuvre_ttc_risk(results, camera))
 
 
-def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel) -> list[RiskEstimate] | None:
-    """The paper's 1/TTC risk on the same states, when the run's risk estimator is another one (else None)."""
-    if all(r.risk.kind == "inverse_ttc" for r in results):
+def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel,
+                      pipeline: Pipeline | None = None) -> list[RiskEstimate] | None:
+    """The paper's 1/TTC risk on the same states, when the run's risk estimator is another one (else None:
+    the run's own risk is the paper's, :class:`monorarp.risk.TTCRiskEstimator` itself, not a subclass)."""
+    if pipeline is not None and type(pipeline.risk) is TTCRiskEstimator:
+        return None
+    if pipeline is None and all(r.risk.kind == "inverse_ttc" for r in results):
         return None
     ttc = build("risk", "ttc", camera=camera)
     return [ttc.assess(r.states, r.t) for r in results]

@@ -8,7 +8,7 @@ import pytest
 from monorarp.camera import CameraModel
 from monorarp.registry import create
 from monorarp.risk import ManoeuvreTTCRisk, TTCRiskEstimator
-from monorarp.types import ObjectState
+from monorarp.types import ObjectState, RiskEstimate
 
 
 def simulate_ttc(s: ObjectState, W=1.8, L=4.5, ego_w=1.8, ego_l=4.5, fwd=0.0, lat=0.0, horizon=10.0, dt=1e-4):
@@ -135,3 +135,20 @@ def test_manoeuvre_ttc_matches_forward_simulation(seed):
 def test_manoeuvre_ttc_rejects_bad_settings(kw):
     with pytest.raises(ValueError, match=next(iter(kw))):
         create("risk", "manoeuvre_ttc", **kw)
+
+
+def test_a_run_with_the_manoeuvre_risk_is_also_scored_with_the_papers_1_over_ttc():
+    from types import SimpleNamespace
+
+    from harness.run_scoring import baseline_ttc_risk, manoeuvre_ttc_risk
+    from monorarp.types import FrameResult
+
+    cam = CameraModel.from_fov(640, 360, 60, 1.3)
+    states = {1: ObjectState(1, 0.0, 20.0, 0.0, -5.0), 2: ObjectState(2, 3.5, 8.0, 0.0, -1.0)}
+    results = [FrameResult(index=0, t=0.0, detections=[], tracks=[], states=states, risk=RiskEstimate(0.0))]
+    own = baseline_ttc_risk(results, cam, SimpleNamespace(risk=TTCRiskEstimator(camera=cam)))
+    assert own is None                                   # the run's risk is the paper's already
+    other = baseline_ttc_risk(results, cam, SimpleNamespace(risk=ManoeuvreTTCRisk(camera=cam)))
+    assert other[0].risk == pytest.approx(TTCRiskEstimator(camera=cam).assess(states).risk)
+    assert manoeuvre_ttc_risk(results, cam)[0] == pytest.approx(ManoeuvreTTCRisk(camera=cam).assess(states).risk)
+    assert manoeuvre_ttc_risk(results, cam)[0] > other[0].risk > 0   # the hypothesis only brings contact nearer
