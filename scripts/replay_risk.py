@@ -1,0 +1,94 @@
+"""Replay the adverse-manoeuvre risk over a risk scorecard's runs and score it, with held-out splits.
+
+How ``manoeuvre_ttc``'s defaults (``monorarp/risk.py``, :class:`ManoeuvreTTCRisk`) were chosen and
+checked: ``monorarp scorecard --suite risk --out DIR`` writes every run's per-object states
+(``per_object.csv``); this script rebuilds each frame's states from them (the estimates, or with
+``--truth`` the true states), scores :class:`ManoeuvreTTCRisk` for every brake x lateral setting of the
+grid, and prints the pooled AUROC / AP per horizon beside the estimators the runs scored themselves,
+with the scorecard's own labels (:func:`harness.scorecard.score.pooled_risk`).
+
+    python scripts/replay_risk.py DIR/runs [--brake 4 --lateral 0.5 ...] [--truth]
+        [--only SUFFIX | --exclude SUFFIX]        # e.g. --only __t0, --exclude __t0: the held-out runs
+
+Needs the harness.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from harness.scorecard.run import _frame_arrays
+from harness.scorecard.score import HORIZONS_S, pooled_risk
+from monorarp.camera import CameraModel
+from monorarp.risk import ManoeuvreTTCRisk
+from monorarp.types import ObjectState
+
+EST = ("track_id", "d_x_est", "d_y_est", "v_x_est", "v_y_est")
+TRUTH = ("gt_id", "d_lat_gt", "d_long_gt", "v_lat_gt", "v_long_gt")
+
+
+def frame_states(run_dir: Path, n_frames: int, truth: bool = False) -> list[dict[int, ObjectState]]:
+    """Per frame index, ``{id: ObjectState}`` from ``per_object.csv``: the estimated states, or the true ones."""
+    keys = TRUTH if truth else EST
+    states: list[dict[int, ObjectState]] = [{} for _ in range(n_frames)]
+    with open(run_dir / "per_object.csv", newline="") as f:
+        for row in csv.DictReader(f):
+            if any(row[k] in ("", None) for k in keys):
+                continue
+            k, i = int(row["frame"]), int(row[keys[0]])
+            if 0 <= k < n_frames:
+                states[k][i] = ObjectState(i, *(float(row[c]) for c in keys[1:]))
+    return states
+
+
+def replay(runs_dir: Path, settings: list[tuple[float, float]], truth: bool = False,
+           only: str | None = None, exclude: str | None = None) -> list[dict[str, np.ndarray]]:
+    """Each run's per-frame arrays (:func:`harness.scorecard.run._frame_arrays`) plus one column
+    ``manoeuvre_b{brake}_l{lateral}`` per setting, replayed on its states."""
+    runs = []
+    for d in sorted(p for p in runs_dir.iterdir() if p.is_dir()):
+        if (only and not d.name.endswith(only)) or (exclude and d.name.endswith(exclude)):
+            continue
+        arrays = _frame_arrays(d)
+        if arrays is None:
+            continue
+        camera = CameraModel.from_dict(json.loads((d / "camera.json").read_text()))
+        states = frame_states(d, len(arrays["t"]), truth)
+        for brake, lateral in settings:
+            stage = ManoeuvreTTCRisk(brake_mps2=brake, lateral_mps=lateral, camera=camera)
+            arrays[f"manoeuvre_b{brake:g}_l{lateral:g}"] = np.array([stage.assess(s).risk for s in states])
+        runs.append(arrays)
+    return runs
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("runs_dir", type=Path, help="a risk scorecard's runs/ folder")
+    ap.add_argument("--brake", type=float, nargs="+", default=[4.0], help="m/s^2 (default 4)")
+    ap.add_argument("--lateral", type=float, nargs="+", default=[0.5], help="m/s (default 0.5)")
+    ap.add_argument("--truth", action="store_true", help="replay on the true states instead of the estimates")
+    split = ap.add_mutually_exclusive_group()
+    split.add_argument("--only", metavar="SUFFIX", help="only the runs whose name ends so")
+    split.add_argument("--exclude", metavar="SUFFIX", help="all runs but those whose name ends so")
+    args = ap.parse_args()
+    if not args.runs_dir.is_dir():
+        raise SystemExit(f"replay_risk: {args.runs_dir}: no such folder")
+    settings = [(b, lat) for b in args.brake for lat in args.lateral]
+    runs = replay(args.runs_dir, settings, args.truth, args.only, args.exclude)
+    if not runs:
+        raise SystemExit(f"replay_risk: {args.runs_dir}: no run with a per_frame.csv")
+    print(f"{len(runs)} runs, {'true' if args.truth else 'estimated'} states")
+    for horizon, per in pooled_risk(runs, HORIZONS_S).items():
+        print(horizon)
+        for name, r in sorted(per.items()):
+            print(f"  {name:24s} AUROC {r['auroc']:.3f}  AP {r['ap']:.3f}  ({r['positives']}/{r['frames']} positive)")
+
+
+if __name__ == "__main__":
+    main()
