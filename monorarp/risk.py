@@ -91,21 +91,22 @@ def ttc_std(states: dict[int, ObjectState], ttc: dict[int, float | None]) -> dic
 
 
 class ManoeuvreTTCRisk(TTCRiskEstimator):
-    """``assess(states, t) -> RiskEstimate``: 1/TTC under an adverse-manoeuvre hypothesis.
+    """``assess(states, t) -> RiskEstimate``: 1/TTC under adverse-manoeuvre hypotheses.
 
-    Every vehicle is taken to start braking now at ``brake_mps2`` (relative to the ego, which keeps
-    its speed: the non-reacting driver of the FCW protocols) and to move sideways towards the ego's
-    centre line at ``lateral_mps`` (its measured lateral velocity, the noisiest reading, is not used).
-    The TTC of the rectangles under that motion
-    (:func:`monorarp.ttc.time_to_collision` with a constant relative acceleration) scores the risk as
-    ``max 1 / TTC`` (1/s, the paper's equation 5 otherwise). It is the "what if it brakes / drifts in"
-    question of worst-case risk measures (the reachable sets of Lefevre et al. 2014): a
-    close follower scores before its lead brakes, a slower car beside the ego before it turns in,
-    which constant-velocity 1/TTC cannot. Defaults 4 m/s^2 (firm braking, 0.4 g) and 0.5 m/s (a slow
-    lane change's lateral speed): docs/scorecard.md says how they were chosen and what they score.
+    Each vehicle is taken to make one of two manoeuvres now, whichever brings contact first: brake
+    at ``brake_mps2`` in its lane (relative to the ego, which keeps its speed: the non-reacting driver
+    of the FCW protocols), or move sideways towards the ego's centre line at ``lateral_mps`` at its
+    closing speed. Its measured lateral velocity, the noisiest reading, is not used. The TTC of the
+    rectangles under each (:func:`monorarp.ttc.time_to_collision`, with a constant relative
+    acceleration for the braking) scores the risk as ``max 1 / TTC`` (1/s, the paper's equation 5
+    otherwise). It is the "what if it brakes / turns in" question of worst-case risk measures (the
+    reachable sets of Lefevre et al. 2014): a close follower scores before its lead brakes, a slower
+    car beside the ego before it turns in, which constant-velocity 1/TTC cannot. Defaults 4 m/s^2
+    (firm braking, 0.4 g) and 1 m/s (a lane change's lateral speed): docs/scorecard.md says how they
+    were chosen and what they score.
     """
 
-    def __init__(self, brake_mps2: float = 4.0, lateral_mps: float = 0.5, camera: CameraModel | None = None,
+    def __init__(self, brake_mps2: float = 4.0, lateral_mps: float = 1.0, camera: CameraModel | None = None,
                  **kw) -> None:
         """``kw``: the sizes, offsets, horizon and floor of :class:`TTCRiskEstimator`."""
         super().__init__(camera=camera, **kw)
@@ -115,13 +116,16 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
         self.brake_mps2, self.lateral_mps = float(brake_mps2), float(lateral_mps)
 
     def ttc(self, states: dict[int, ObjectState]) -> dict[int, float | None]:
-        """Per-object TTC (s) under the hypothesis, None when no contact within the horizon."""
+        """Per-object TTC (s), the sooner of the two manoeuvres'; None when neither makes contact within the horizon."""
         if not states:
             return {}
         ids = list(states)
         arr = np.array([[s.d_x, s.d_y, s.v_y] for s in states.values()], dtype=float)
         x_lo, x_hi, y_lo, y_hi = object_extents(arr[:, 0], arr[:, 1], self.other_width_m, self.other_length_m)
-        v_x = -np.sign(arr[:, 0] - sum(self.ego_x) / 2) * self.lateral_mps
-        ttc = time_to_collision(x_lo, x_hi, y_lo, y_hi, v_x, arr[:, 2], self.ego_x, self.ego_y, self.horizon_s,
-                                a_y=np.full(len(ids), -self.brake_mps2))
+        still = np.zeros(len(ids))
+        braking = time_to_collision(x_lo, x_hi, y_lo, y_hi, still, arr[:, 2], self.ego_x, self.ego_y, self.horizon_s,
+                                    a_y=np.full(len(ids), -self.brake_mps2))
+        towards = -np.sign(arr[:, 0] - sum(self.ego_x) / 2) * self.lateral_mps
+        turning = time_to_collision(x_lo, x_hi, y_lo, y_hi, towards, arr[:, 2], self.ego_x, self.ego_y, self.horizon_s)
+        ttc = np.fmin(braking, turning)
         return {i: (None if np.isnan(v) else float(v)) for i, v in zip(ids, ttc)}

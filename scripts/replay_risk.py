@@ -7,7 +7,7 @@ checked: ``monorarp scorecard --suite risk --out DIR`` writes every run's per-ob
 grid, and prints the pooled AUROC / AP per horizon beside the estimators the runs scored themselves,
 with the scorecard's own labels (:func:`harness.scorecard.score.pooled_risk`).
 
-    python scripts/replay_risk.py DIR/runs [--brake 4 --lateral 0.5 ...] [--truth]
+    python scripts/replay_risk.py DIR/runs [--brake 4 --lateral 1 ...] [--truth]
         [--only SUFFIX | --exclude SUFFIX]        # e.g. --only __t0, --exclude __t0: the held-out runs
 
 Needs the harness.
@@ -71,7 +71,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs_dir", type=Path, help="a risk scorecard's runs/ folder")
     ap.add_argument("--brake", type=float, nargs="+", default=[4.0], help="m/s^2 (default 4)")
-    ap.add_argument("--lateral", type=float, nargs="+", default=[0.5], help="m/s (default 0.5)")
+    ap.add_argument("--lateral", type=float, nargs="+", default=[1.0], help="m/s (default 1)")
     ap.add_argument("--truth", action="store_true", help="replay on the true states instead of the estimates")
     split = ap.add_mutually_exclusive_group()
     split.add_argument("--only", metavar="SUFFIX", help="only the runs whose name ends so")

@@ -83,15 +83,19 @@ def test_max_over_objects_and_floor():
 
 
 def simulate_manoeuvre_ttc(s: ObjectState, brake: float, lateral: float, W=1.8, L=4.5, horizon=10.0, dt=1e-4):
-    """Forward simulation of the hypothesis: the other brakes at ``brake`` and moves towards the ego's centre
-    line at ``lateral``; once its rear has reached the ego's front it stays in contact (a stopped wreck)."""
+    """Forward simulation of the two hypotheses, the sooner contact: the other brakes at ``brake`` in its
+    lane (once its rear has reached the ego's front it stays in contact, a stopped wreck), or it moves
+    towards the ego's centre line at ``lateral`` at constant closing speed."""
     t = np.arange(0.0, horizon + dt, dt)
-    x = s.d_x - np.sign(s.d_x) * lateral * t
-    y = s.d_y + s.v_y * t - brake * t * t / 2
     ex, ey = (-0.9, 0.9), (-2.25, 2.25)
+    y = s.d_y + s.v_y * t - brake * t * t / 2
     y_touch = np.maximum.accumulate(y < ey[1]) if s.d_y >= ey[1] else (y < ey[1]) & (y + L > ey[0])
-    hit = (x - W / 2 < ex[1]) & (x + W / 2 > ex[0]) & y_touch
-    return float(t[np.argmax(hit)]) if hit.any() else None
+    hit_brake = (s.d_x - W / 2 < ex[1]) & (s.d_x + W / 2 > ex[0]) & y_touch
+    x = s.d_x - np.sign(s.d_x) * lateral * t
+    y = s.d_y + s.v_y * t
+    hit_turn = (x - W / 2 < ex[1]) & (x + W / 2 > ex[0]) & (y < ey[1]) & (y + L > ey[0])
+    times = [float(t[np.argmax(h)]) for h in (hit_brake, hit_turn) if h.any()]
+    return min(times) if times else None
 
 
 def test_manoeuvre_ttc_of_a_lead_at_the_ego_speed_is_the_braking_distance_time():
@@ -103,11 +107,16 @@ def test_manoeuvre_ttc_of_a_lead_at_the_ego_speed_is_the_braking_distance_time()
 
 def test_manoeuvre_ttc_of_a_next_lane_car_is_its_drift_time():
     # lane +1 (3.5 m), 5 m ahead and closing at 1 m/s: at 0.5 m/s it reaches the ego's side (0.9 m)
-    # after (3.5 - 0.9 - 0.9) / 0.5 = 3.4 s, its rear at the ego's front long before
+    # after (3.5 - 0.9 - 0.9) / 0.5 = 3.4 s, its rear level with the ego's front from 2.75 s to 11.75 s;
+    # braking in its lane it never meets the ego
     s = ObjectState(1, 3.5, 5.0, 0.0, -1.0)
     est = ManoeuvreTTCRisk(brake_mps2=4.0, lateral_mps=0.5).assess({1: s})
     assert est.ttc[1] == pytest.approx(3.4)
     assert ManoeuvreTTCRisk(lateral_mps=0.0).assess({1: s}).ttc[1] is None
+    # a lead braking and turning is not both at once: each manoeuvre alone, the sooner counts
+    lead = ObjectState(2, 0.5, 15.0, 0.0, 0.0)
+    assert ManoeuvreTTCRisk(brake_mps2=4.0, lateral_mps=1.0).assess({2: lead}).ttc[2] == pytest.approx(
+        np.sqrt(2 * (15.0 - 2.25) / 4.0))
 
 
 def test_manoeuvre_ttc_without_a_manoeuvre_is_the_constant_velocity_ttc():
