@@ -56,12 +56,10 @@ def score_run(truths: list[FrameTruth], results: list[FrameResult], cfg: Pipelin
 
 
 def baseline_ttc_risk(results: list[FrameResult], camera: CameraModel,
-                      pipeline: Pipeline | None = None) -> list[RiskEstimate] | None:
+                      pipeline: Pipeline) -> list[RiskEstimate] | None:
     """The paper's 1/TTC risk on the same states, when the run's risk estimator is another one (else None:
     the run's own risk is the paper's, :class:`monorarp.risk.TTCRiskEstimator` itself, not a subclass)."""
-    if pipeline is not None and type(pipeline.risk) is TTCRiskEstimator:
-        return None
-    if pipeline is None and all(r.risk.kind == "inverse_ttc" for r in results):
+    if type(pipeline.risk) is TTCRiskEstimator:
         return None
     ttc = build("risk", "ttc", camera=camera)
     return [ttc.assess(r.states, r.t) for r in results]

@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -80,7 +79,10 @@ def main() -> None:
     if not args.runs_dir.is_dir():
         raise SystemExit(f"replay_risk: {args.runs_dir}: no such folder")
     settings = [(b, lat) for b in args.brake for lat in args.lateral]
-    runs = replay(args.runs_dir, settings, args.truth, args.only, args.exclude)
+    try:
+        runs = replay(args.runs_dir, settings, args.truth, args.only, args.exclude)
+    except (OSError, ValueError, KeyError, TypeError) as e:   # a run folder without its files, a bad setting
+        raise SystemExit(f"replay_risk: {args.runs_dir}: {e}") from None
     if not runs:
         raise SystemExit(f"replay_risk: {args.runs_dir}: no run with a per_frame.csv")
     print(f"{len(runs)} runs, {'true' if args.truth else 'estimated'} states")

@@ -70,3 +70,15 @@ def test_a_missing_folder_is_one_line_and_exit_1(tmp_path):
     p = subprocess.run([sys.executable, "scripts/replay_risk.py", str(tmp_path / "nope")], capture_output=True,
                        text=True, cwd=Path(__file__).resolve().parents[1])
     assert p.returncode == 1 and p.stderr.strip() == f"replay_risk: {tmp_path / 'nope'}: no such folder"
+
+
+def test_a_run_without_its_files_or_a_bad_setting_is_one_line_and_exit_1(tmp_path):
+    d = _run(tmp_path / "runs", "risk__Brake__t0", closing=4.0)
+    root = Path(__file__).resolve().parents[1]
+    bad = subprocess.run([sys.executable, "scripts/replay_risk.py", str(tmp_path / "runs"), "--brake", "-1"],
+                         capture_output=True, text=True, cwd=root)
+    assert bad.returncode == 1 and bad.stderr.count("\n") == 1 and "brake_mps2 must be >= 0" in bad.stderr
+    (d / "camera.json").unlink()
+    gone = subprocess.run([sys.executable, "scripts/replay_risk.py", str(tmp_path / "runs")],
+                          capture_output=True, text=True, cwd=root)
+    assert gone.returncode == 1 and gone.stderr.count("\n") == 1 and "camera.json" in gone.stderr
