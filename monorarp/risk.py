@@ -19,6 +19,9 @@ one-sigma distance and closing-speed uncertainties through the longitudinal gap
 
 from __future__ import annotations
 
+from collections import deque
+from dataclasses import replace
+
 import numpy as np
 
 from monorarp.camera import CameraModel
@@ -104,16 +107,41 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
     car beside the ego before it turns in, which constant-velocity 1/TTC cannot. Defaults 4 m/s^2
     (firm braking, 0.4 g) and 1 m/s (a lane change's lateral speed): docs/scorecard.md says how they
     were chosen and what they score.
+
+    **Peak hold**: the scene risk reported at time ``t`` is the highest of the frames in
+    ``[t - hold_s, t]`` (0.6 s; 0 turns it off; frames without a time are not held). A vehicle whose
+    track drops out for a few frames, or whose reading flickers off a collision course, keeps its
+    score until the window has passed it. The per-object ``ttc`` stays the current frame's. The hold
+    is the stage's only state: :meth:`reset` clears it, and a time earlier than the last one starts
+    it afresh.
     """
 
-    def __init__(self, brake_mps2: float = 4.0, lateral_mps: float = 1.0, camera: CameraModel | None = None,
-                 **kw) -> None:
+    def __init__(self, brake_mps2: float = 4.0, lateral_mps: float = 1.0, hold_s: float = 0.6,
+                 camera: CameraModel | None = None, **kw) -> None:
         """``kw``: the sizes, offsets, horizon and floor of :class:`TTCRiskEstimator`."""
         super().__init__(camera=camera, **kw)
-        for name, v in (("brake_mps2", brake_mps2), ("lateral_mps", lateral_mps)):
+        for name, v in (("brake_mps2", brake_mps2), ("lateral_mps", lateral_mps), ("hold_s", hold_s)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be >= 0, got {v}")
-        self.brake_mps2, self.lateral_mps = float(brake_mps2), float(lateral_mps)
+        self.brake_mps2, self.lateral_mps, self.hold_s = float(brake_mps2), float(lateral_mps), float(hold_s)
+        self._recent: deque[tuple[float, float]] = deque()    # (t s, risk 1/s) of the frames in the hold window
+
+    def reset(self) -> None:
+        """Forget the hold window (a new sequence)."""
+        self._recent.clear()
+
+    def assess(self, states: dict[int, ObjectState], t: float | None = None,
+               ego_speed: float | None = None) -> RiskEstimate:
+        """Scene risk at frame time ``t`` (s): the held ``max 1 / TTC`` (class docstring)."""
+        estimate = super().assess(states, t, ego_speed)
+        if self.hold_s == 0 or t is None:
+            return estimate
+        if self._recent and t < self._recent[-1][0]:
+            self._recent.clear()
+        self._recent.append((float(t), estimate.risk))
+        while self._recent[0][0] < t - self.hold_s - 1e-9:
+            self._recent.popleft()
+        return replace(estimate, risk=max(r for _, r in self._recent))
 
     def ttc(self, states: dict[int, ObjectState]) -> dict[int, float | None]:
         """Per-object TTC (s), the sooner of the two manoeuvres'; None when neither makes contact within the horizon."""

@@ -45,25 +45,27 @@ def test_the_replayed_risk_is_the_estimator_on_the_runs_states(tmp_path):
     assert est[3] == {7: ObjectState(7, 0.1, 18.8, 0.2, -4.4)}
     truth = frame_states(d, 20, truth=True)
     assert set(truth[3]) == {1, 2} and truth[3][2].d_x == 3.5
-    (run,) = replay(tmp_path / "runs", [(4.0, 1.0), (0.0, 0.0)])
+    (run,) = replay(tmp_path / "runs", [(4.0, 1.0, 0.6), (0.0, 0.0, 0.0)])
+    times = np.arange(20) / 10
     stage = ManoeuvreTTCRisk(camera=CAM)
-    np.testing.assert_allclose(run["manoeuvre_b4_l1"], [stage.assess(s).risk for s in est])
+    np.testing.assert_allclose(run["manoeuvre_b4_l1_h0.6"], [stage.assess(s, t).risk for s, t in zip(est, times)])
     # no manoeuvre: the constant-velocity 1/TTC of a lead read closing at 4.4 m/s, its rear at 20 - 0.4 k m,
     # the ego's front 4.5 / 2 - 0.5 m ahead of the camera
     gap = 20.0 - 0.4 * np.arange(20) - (4.5 / 2 - 0.5)
-    np.testing.assert_allclose(run["manoeuvre_b0_l0"], 4.4 / gap)
-    (true_run,) = replay(tmp_path / "runs", [(4.0, 1.0)], truth=True)
-    np.testing.assert_allclose(true_run["manoeuvre_b4_l1"], [stage.assess(s).risk for s in truth])
+    np.testing.assert_allclose(run["manoeuvre_b0_l0_h0"], 4.4 / gap)
+    (true_run,) = replay(tmp_path / "runs", [(4.0, 1.0, 0.6)], truth=True)
+    stage.reset()
+    np.testing.assert_allclose(true_run["manoeuvre_b4_l1_h0.6"], [stage.assess(s, t).risk for s, t in zip(truth, times)])
 
 
 def test_runs_are_split_by_name_and_scored_with_the_scorecards_labels(tmp_path):
     for name, closing in (("risk__Brake__t0", 4.0), ("risk__Brake__t1", 6.0), ("risk__Nominal__seed3", 0.0)):
         _run(tmp_path / "runs", name, closing)
-    assert len(replay(tmp_path / "runs", [(4.0, 1.0)], only="__t0")) == 1
-    assert len(replay(tmp_path / "runs", [(4.0, 1.0)], exclude="__t0")) == 2
+    assert len(replay(tmp_path / "runs", [(4.0, 1.0, 0.6)], only="__t0")) == 1
+    assert len(replay(tmp_path / "runs", [(4.0, 1.0, 0.6)], exclude="__t0")) == 2
     out = subprocess.run([sys.executable, "scripts/replay_risk.py", str(tmp_path / "runs"), "--brake", "4", "6"],
                          capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1], check=True).stdout
-    assert out.startswith("3 runs, estimated states") and "manoeuvre_b6_l1" in out and "2s" in out
+    assert out.startswith("3 runs, estimated states") and "manoeuvre_b6_l1_h0.6" in out and "2s" in out
 
 
 def test_a_missing_folder_is_one_line_and_exit_1(tmp_path):

@@ -140,7 +140,31 @@ def test_manoeuvre_ttc_matches_forward_simulation(seed):
             assert est.ttc[i] == pytest.approx(ref, abs=5e-4)
 
 
-@pytest.mark.parametrize("kw", [{"brake_mps2": -1.0}, {"lateral_mps": float("nan")}])
+def test_manoeuvre_risk_holds_its_peak_for_hold_s():
+    # a lead 15 m ahead at the ego speed scores 1 / sqrt(2 gap / b); it drops out for 3 frames at 10 fps,
+    # then a car far away: the peak stays for 0.6 s (frames 0.1-0.7 s), then the far car's own score
+    lead = {1: ObjectState(1, 0.0, 15.0, 0.0, 0.0)}
+    far = {2: ObjectState(2, 0.0, 60.0, 0.0, 0.0)}
+    peak = 1 / np.sqrt(2 * (15.0 - 2.25) / 4.0)
+    low = 1 / np.sqrt(2 * (60.0 - 2.25) / 4.0)
+    stage = ManoeuvreTTCRisk(hold_s=0.6)
+    seq = [lead, {}, {}, {}, far, far, far, far, far]
+    risks = [stage.assess(s, 0.1 * k).risk for k, s in enumerate(seq)]
+    np.testing.assert_allclose(risks, [peak] * 7 + [low] * 2)
+    assert stage.assess(far, 0.9).ttc == {2: pytest.approx(1 / low)}    # per-object TTC: the frame's own
+    stage.reset()
+    assert stage.assess({}, 1.0).risk == 0.0
+    # a time earlier than the last starts afresh; no time or hold 0: no hold
+    stage.assess(lead, 5.0)
+    assert stage.assess({}, 0.0).risk == 0.0
+    stage.assess(lead, 1.0)
+    assert stage.assess({}, None).risk == 0.0
+    off = ManoeuvreTTCRisk(hold_s=0.0)
+    off.assess(lead, 0.0)
+    assert off.assess({}, 0.1).risk == 0.0
+
+
+@pytest.mark.parametrize("kw", [{"brake_mps2": -1.0}, {"lateral_mps": float("nan")}, {"hold_s": -0.1}])
 def test_manoeuvre_ttc_rejects_bad_settings(kw):
     with pytest.raises(ValueError, match=next(iter(kw))):
         create("risk", "manoeuvre_ttc", **kw)

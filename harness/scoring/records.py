@@ -50,6 +50,9 @@ class ObjectRecord:
     d_x_std: float = NAN
     v_y_std: float = NAN
     v_x_std: float = NAN
+    a_y_est: float = NAN         # relative longitudinal acceleration (m/s^2) and its one-sigma, where estimated
+    a_y_std: float = NAN
+    age_s: float = NAN           # time since the estimator's filter of the track started (s)
 
     @property
     def is_false_track(self) -> bool:
