@@ -105,25 +105,33 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
     otherwise). It is the "what if it brakes / turns in" question of worst-case risk measures (the
     reachable sets of Lefevre et al. 2014): a close follower scores before its lead brakes, a slower
     car beside the ego before it turns in, which constant-velocity 1/TTC cannot. Defaults 4 m/s^2
-    (firm braking, 0.4 g) and 1 m/s (a lane change's lateral speed): docs/scorecard.md says how they
-    were chosen and what they score.
+    (firm braking, 0.4 g) and 1 m/s (a lane change's lateral speed); docs/scorecard.md says how these
+    and the two below were chosen (scenarios/fcw/risk_tuning.yaml) and what they score.
+
+    **Closing speed**: the filter's (``-v_y``) mixed with the looming cue's (``expansion_rate x d_y``,
+    the box's growth rate: :mod:`monorarp.expansion`) as ``(1 - looming_weight) x filter + looming_weight
+    x looming`` (0.5); the filter's alone where the state has no expansion rate. The range filter lags a
+    lead that starts braking; the mix reacts sooner.
 
     **Peak hold**: the scene risk reported at time ``t`` is the highest of the frames in
-    ``[t - hold_s, t]`` (0.6 s; 0 turns it off; frames without a time are not held). A vehicle whose
+    ``[t - hold_s, t]`` (0.45 s; 0 turns it off; frames without a time are not held). A vehicle whose
     track drops out for a few frames, or whose reading flickers off a collision course, keeps its
     score until the window has passed it. The per-object ``ttc`` stays the current frame's. The hold
     is the stage's only state: :meth:`reset` clears it, and a time earlier than the last one starts
     it afresh.
     """
 
-    def __init__(self, brake_mps2: float = 4.0, lateral_mps: float = 1.0, hold_s: float = 0.6,
-                 camera: CameraModel | None = None, **kw) -> None:
+    def __init__(self, brake_mps2: float = 4.0, lateral_mps: float = 1.0, hold_s: float = 0.45,
+                 looming_weight: float = 0.5, camera: CameraModel | None = None, **kw) -> None:
         """``kw``: the sizes, offsets, horizon and floor of :class:`TTCRiskEstimator`."""
         super().__init__(camera=camera, **kw)
         for name, v in (("brake_mps2", brake_mps2), ("lateral_mps", lateral_mps), ("hold_s", hold_s)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be >= 0, got {v}")
+        if not 0 <= looming_weight <= 1:
+            raise ValueError(f"looming_weight must be in [0, 1], got {looming_weight}")
         self.brake_mps2, self.lateral_mps, self.hold_s = float(brake_mps2), float(lateral_mps), float(hold_s)
+        self.looming_weight = float(looming_weight)
         self._recent: deque[tuple[float, float]] = deque()    # (t s, risk 1/s) of the frames in the hold window
 
     def reset(self) -> None:
@@ -148,7 +156,7 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
         if not states:
             return {}
         ids = list(states)
-        arr = np.array([[s.d_x, s.d_y, s.v_y] for s in states.values()], dtype=float)
+        arr = np.array([[s.d_x, s.d_y, self.closing_velocity(s)] for s in states.values()], dtype=float)
         x_lo, x_hi, y_lo, y_hi = object_extents(arr[:, 0], arr[:, 1], self.other_width_m, self.other_length_m)
         still = np.zeros(len(ids))
         braking = time_to_collision(x_lo, x_hi, y_lo, y_hi, still, arr[:, 2], self.ego_x, self.ego_y, self.horizon_s,
@@ -157,3 +165,10 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
         turning = time_to_collision(x_lo, x_hi, y_lo, y_hi, towards, arr[:, 2], self.ego_x, self.ego_y, self.horizon_s)
         ttc = np.fmin(braking, turning)
         return {i: (None if np.isnan(v) else float(v)) for i, v in zip(ids, ttc)}
+
+    def closing_velocity(self, s: ObjectState) -> float:
+        """Relative longitudinal velocity ``v_y`` (m/s, negative = closing) the hypotheses start from: the
+        filter's mixed with the looming cue's ``-expansion_rate x d_y`` (class docstring)."""
+        if s.expansion_rate is None or self.looming_weight == 0:
+            return s.v_y
+        return (1 - self.looming_weight) * s.v_y - self.looming_weight * s.expansion_rate * s.d_y

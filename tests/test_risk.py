@@ -164,7 +164,20 @@ def test_manoeuvre_risk_holds_its_peak_for_hold_s():
     assert off.assess({}, 0.1).risk == 0.0
 
 
-@pytest.mark.parametrize("kw", [{"brake_mps2": -1.0}, {"lateral_mps": float("nan")}, {"hold_s": -0.1}])
+def test_manoeuvre_risk_mixes_the_looming_closing_speed_with_the_filters():
+    # the filter reads 4 m/s of closing, the box grows at 0.3 /s at 20 m: 6 m/s; half and half: 5 m/s
+    s = ObjectState(1, 0.0, 20.0, 0.0, -4.0, expansion_rate=0.3)
+    cv = TTCRiskEstimator()
+    for w, v_y in ((0.0, -4.0), (0.5, -5.0), (1.0, -6.0)):
+        stage = ManoeuvreTTCRisk(brake_mps2=0.0, lateral_mps=0.0, looming_weight=w)
+        assert stage.closing_velocity(s) == pytest.approx(v_y)
+        assert stage.assess({1: s}).ttc[1] == pytest.approx(cv.assess({1: ObjectState(1, 0.0, 20.0, 0.0, v_y)}).ttc[1])
+    no_rate = ObjectState(1, 0.0, 20.0, 0.0, -4.0)                  # no looming reading: the filter's alone
+    assert ManoeuvreTTCRisk(looming_weight=1.0).closing_velocity(no_rate) == -4.0
+
+
+@pytest.mark.parametrize("kw", [{"brake_mps2": -1.0}, {"lateral_mps": float("nan")}, {"hold_s": -0.1},
+                                {"looming_weight": 1.5}, {"looming_weight": float("nan")}])
 def test_manoeuvre_ttc_rejects_bad_settings(kw):
     with pytest.raises(ValueError, match=next(iter(kw))):
         create("risk", "manoeuvre_ttc", **kw)

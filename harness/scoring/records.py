@@ -53,6 +53,7 @@ class ObjectRecord:
     a_y_est: float = NAN         # relative longitudinal acceleration (m/s^2) and its one-sigma, where estimated
     a_y_std: float = NAN
     age_s: float = NAN           # time since the estimator's filter of the track started (s)
+    expansion_rate: float = NAN  # the box's looming rate, closing speed / distance (1/s), where estimated
 
     @property
     def is_false_track(self) -> bool:
