@@ -110,8 +110,10 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
 
     **Closing speed**: the filter's (``-v_y``) mixed with the looming cue's (``expansion_rate x d_y``,
     the box's growth rate: :mod:`monorarp.expansion`) as ``(1 - looming_weight) x filter + looming_weight
-    x looming`` (0.5); the filter's alone where the state has no expansion rate. The range filter lags a
-    lead that starts braking; the mix reacts sooner.
+    x looming`` (0.5); the filter's alone where the state has no expansion rate, or one whose one-sigma
+    is over ``looming_max_std`` (0.5 /s: a rate only predicted, as for a box cut by a side border,
+    whose constant-closing-speed prediction grows without bound, or one just started). The range
+    filter lags a lead that starts braking; the mix reacts sooner.
 
     **Peak hold**: the scene risk reported at time ``t`` is the highest of the frames in
     ``[t - hold_s, t]`` (0.45 s; 0 turns it off; frames without a time are not held). A vehicle whose
@@ -122,7 +124,8 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
     """
 
     def __init__(self, brake_mps2: float = 4.0, lateral_mps: float = 1.0, hold_s: float = 0.45,
-                 looming_weight: float = 0.5, camera: CameraModel | None = None, **kw) -> None:
+                 looming_weight: float = 0.5, looming_max_std: float | None = 0.5,
+                 camera: CameraModel | None = None, **kw) -> None:
         """``kw``: the sizes, offsets, horizon and floor of :class:`TTCRiskEstimator`."""
         super().__init__(camera=camera, **kw)
         for name, v in (("brake_mps2", brake_mps2), ("lateral_mps", lateral_mps), ("hold_s", hold_s)):
@@ -132,6 +135,9 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
             raise ValueError(f"looming_weight must be in [0, 1], got {looming_weight}")
         self.brake_mps2, self.lateral_mps, self.hold_s = float(brake_mps2), float(lateral_mps), float(hold_s)
         self.looming_weight = float(looming_weight)
+        if looming_max_std is not None and not looming_max_std > 0:
+            raise ValueError(f"looming_max_std must be > 0 or None, got {looming_max_std}")
+        self.looming_max_std = None if looming_max_std is None else float(looming_max_std)
         self._recent: deque[tuple[float, float]] = deque()    # (t s, risk 1/s) of the frames in the hold window
 
     def reset(self) -> None:
@@ -168,7 +174,11 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
 
     def closing_velocity(self, s: ObjectState) -> float:
         """Relative longitudinal velocity ``v_y`` (m/s, negative = closing) the hypotheses start from: the
-        filter's mixed with the looming cue's ``-expansion_rate x d_y`` (class docstring)."""
+        filter's mixed with the looming cue's ``-expansion_rate x d_y`` (class docstring); a rate without a
+        one-sigma counts as within ``looming_max_std``."""
         if s.expansion_rate is None or self.looming_weight == 0:
+            return s.v_y
+        if self.looming_max_std is not None and s.expansion_rate_std is not None \
+                and not s.expansion_rate_std <= self.looming_max_std:
             return s.v_y
         return (1 - self.looming_weight) * s.v_y - self.looming_weight * s.expansion_rate * s.d_y

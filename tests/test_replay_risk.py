@@ -18,12 +18,13 @@ from monorarp.risk import ManoeuvreTTCRisk  # noqa: E402
 from monorarp.types import ObjectState  # noqa: E402
 
 CAM = CameraModel.from_fov(640, 360, 60, 1.3, forward_offset_m=0.5)
-OBJ_COLS = "frame,t,gt_id,track_id,d_long_gt,d_y_est,d_lat_gt,d_x_est,v_long_gt,v_y_est,v_lat_gt,v_x_est,expansion_rate"
+OBJ_COLS = "frame,t,gt_id,track_id,d_long_gt,d_y_est,d_lat_gt,d_x_est,v_long_gt,v_y_est,v_lat_gt,v_x_est,expansion_rate,expansion_rate_std"
 
 
 def _run(root: Path, name: str, closing: float) -> Path:
     """A 20-frame run at 10 fps: a lead 20 m ahead closing at ``closing`` m/s (estimated 10 % fast),
-    its looming rate true, a car in the next lane, and a collision in the last frame."""
+    its looming rate true (with a sigma over the risk's 0.5 /s bound in the first 3 frames, a young
+    filter's), a car in the next lane, and a collision in the last frame."""
     d = root / name
     d.mkdir(parents=True)
     (d / "camera.json").write_text(json.dumps(CAM.to_dict()))
@@ -32,8 +33,9 @@ def _run(root: Path, name: str, closing: float) -> Path:
     for k in range(20):
         d_lead = 20.0 - closing * k / 10
         rows.append(f"{k},{k / 10},0.1,inverse_ttc,,0.0,,{int(k == 19)},")
-        obj.append(f"{k},{k / 10},1,7,{d_lead},{d_lead},0.0,0.1,{-closing},{-1.1 * closing},0.0,0.2,{closing / d_lead}")
-        obj.append(f"{k},{k / 10},2,,12.0,,3.5,,0.0,,0.0,,")          # seen in truth only
+        obj.append(f"{k},{k / 10},1,7,{d_lead},{d_lead},0.0,0.1,{-closing},{-1.1 * closing},0.0,0.2,{closing / d_lead},"
+                   f"{0.8 if k < 3 else 0.05}")
+        obj.append(f"{k},{k / 10},2,,12.0,,3.5,,0.0,,0.0,,,")          # seen in truth only
     (d / "per_frame.csv").write_text("\n".join(rows) + "\n")
     (d / "per_object.csv").write_text("\n".join(obj) + "\n")
     return d
@@ -42,7 +44,7 @@ def _run(root: Path, name: str, closing: float) -> Path:
 def test_the_replayed_risk_is_the_estimator_on_the_runs_states(tmp_path):
     d = _run(tmp_path / "runs", "risk__Brake__t0", closing=4.0)
     est = frame_states(d, 20)
-    assert est[3] == {7: ObjectState(7, 0.1, 18.8, 0.2, -4.4, expansion_rate=4.0 / 18.8)}
+    assert est[3] == {7: ObjectState(7, 0.1, 18.8, 0.2, -4.4, expansion_rate=4.0 / 18.8, expansion_rate_std=0.05)}
     truth = frame_states(d, 20, truth=True)
     assert set(truth[3]) == {1, 2} and truth[3][2].d_x == 3.5 and truth[3][1].expansion_rate is None
     (run,) = replay(tmp_path / "runs", [(4.0, 1.0, 0.6, 0.5), (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.5)])
@@ -53,7 +55,11 @@ def test_the_replayed_risk_is_the_estimator_on_the_runs_states(tmp_path):
     # the ego's front 4.5 / 2 - 0.5 m ahead of the camera
     gap = 20.0 - 0.4 * np.arange(20) - (4.5 / 2 - 0.5)
     np.testing.assert_allclose(run["manoeuvre_b0_l0_h0_w0"], 4.4 / gap)
-    np.testing.assert_allclose(run["manoeuvre_b0_l0_h0_w0.5"], 4.2 / gap)     # half the filter's, half the looming's 4.0
+    mixed = np.where(np.arange(20) < 3, 4.4, 4.2)   # half the filter's, half the looming's 4.0; the filter's alone first
+    np.testing.assert_allclose(run["manoeuvre_b0_l0_h0_w0.5"], mixed / gap)
+    (unbounded,) = replay(tmp_path / "runs", [(0.0, 0.0, 0.0, 0.5, None), (0.0, 0.0, 0.0, 0.5, 1.0)])
+    np.testing.assert_allclose(unbounded["manoeuvre_b0_l0_h0_w0.5_snone"], 4.2 / gap)   # the young rate used too
+    np.testing.assert_allclose(unbounded["manoeuvre_b0_l0_h0_w0.5_s1"], 4.2 / gap)
     (true_run,) = replay(tmp_path / "runs", [(4.0, 1.0, 0.6, 0.5)], truth=True)
     stage.reset()
     np.testing.assert_allclose(true_run["manoeuvre_b4_l1_h0.6_w0.5"], [stage.assess(s, t).risk for s, t in zip(truth, times)])
@@ -64,9 +70,11 @@ def test_runs_are_split_by_name_and_scored_with_the_scorecards_labels(tmp_path):
         _run(tmp_path / "runs", name, closing)
     assert len(replay(tmp_path / "runs", [(4.0, 1.0, 0.6, 0.5)], only="__t0")) == 1
     assert len(replay(tmp_path / "runs", [(4.0, 1.0, 0.6, 0.5)], exclude="__t0")) == 2
-    out = subprocess.run([sys.executable, "scripts/replay_risk.py", str(tmp_path / "runs"), "--brake", "4", "6"],
+    out = subprocess.run([sys.executable, "scripts/replay_risk.py", str(tmp_path / "runs"), "--brake", "4", "6",
+                          "--max-std", "0.5", "none"],
                          capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1], check=True).stdout
-    assert out.startswith("3 runs, estimated states") and "manoeuvre_b6_l1_h0.45_w0.5" in out and "2s" in out
+    assert out.startswith("3 runs, estimated states") and "manoeuvre_b6_l1_h0.45_w0.5_s0.5" in out and "2s" in out
+    assert "manoeuvre_b4_l1_h0.45_w0.5_snone" in out
 
 
 def test_a_missing_folder_is_one_line_and_exit_1(tmp_path):

@@ -176,8 +176,22 @@ def test_manoeuvre_risk_mixes_the_looming_closing_speed_with_the_filters():
     assert ManoeuvreTTCRisk(looming_weight=1.0).closing_velocity(no_rate) == -4.0
 
 
+def test_manoeuvre_risk_uses_the_looming_rate_only_where_its_sigma_is_within_the_bound():
+    # a rate the filter only predicts (its sigma grown past 0.5 /s) reads as 30 m/s of closing at 20 m
+    def state(rate_std):
+        return ObjectState(1, 0.0, 20.0, 0.0, -4.0, expansion_rate=1.5, expansion_rate_std=rate_std)
+    stage = ManoeuvreTTCRisk()                                                  # weight 0.5, bound 0.5 /s
+    assert stage.closing_velocity(state(0.6)) == -4.0                           # the filter's alone
+    assert stage.closing_velocity(state(float("nan"))) == -4.0
+    assert stage.closing_velocity(state(0.5)) == pytest.approx(0.5 * -4.0 - 0.5 * 1.5 * 20.0)
+    assert stage.closing_velocity(state(None)) == pytest.approx(-17.0)         # no sigma: trusted
+    assert ManoeuvreTTCRisk(looming_max_std=None).closing_velocity(state(5.0)) == pytest.approx(-17.0)
+    assert stage.assess({1: state(0.6)}).ttc[1] > stage.assess({1: state(0.4)}).ttc[1]
+
+
 @pytest.mark.parametrize("kw", [{"brake_mps2": -1.0}, {"lateral_mps": float("nan")}, {"hold_s": -0.1},
-                                {"looming_weight": 1.5}, {"looming_weight": float("nan")}])
+                                {"looming_weight": 1.5}, {"looming_weight": float("nan")},
+                                {"looming_max_std": 0.0}, {"looming_max_std": float("nan")}])
 def test_manoeuvre_ttc_rejects_bad_settings(kw):
     with pytest.raises(ValueError, match=next(iter(kw))):
         create("risk", "manoeuvre_ttc", **kw)

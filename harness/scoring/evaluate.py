@@ -90,8 +90,8 @@ def frame_records(truth: FrameTruth, result: FrameResult, cfg: EvalConfig,
         if st is not None:
             r.d_y_est, r.d_x_est, r.v_y_est, r.v_x_est = st.d_y, st.d_x, st.v_y, st.v_x
             r.d_y_std, r.d_x_std, r.v_y_std, r.v_x_std = map(_f, (st.d_y_std, st.d_x_std, st.v_y_std, st.v_x_std))
-            r.a_y_est, r.a_y_std, r.age_s, r.expansion_rate = map(_f, (st.a_y, st.a_y_std, st.age_s,
-                                                                          st.expansion_rate))
+            r.a_y_est, r.a_y_std, r.age_s, r.expansion_rate, r.expansion_rate_std = map(
+                _f, (st.a_y, st.a_y_std, st.age_s, st.expansion_rate, st.expansion_rate_std))
         r.ttc_est = _f(result.risk.ttc.get(tr.id))
 
     for g, o in enumerate(objects):

@@ -54,6 +54,7 @@ class ObjectRecord:
     a_y_std: float = NAN
     age_s: float = NAN           # time since the estimator's filter of the track started (s)
     expansion_rate: float = NAN  # the box's looming rate, closing speed / distance (1/s), where estimated
+    expansion_rate_std: float = NAN
 
     @property
     def is_false_track(self) -> bool:
