@@ -81,8 +81,9 @@ class StateEstimator:
         max_inward_offset_m: the most (m) a learnt near-edge offset may move a vehicle towards the
             centre line (:meth:`_inward_clipped`; None: no limit).
         expansion_process_std: process noise (1/s^2) of the per-track expansion-rate filter
-            (:mod:`monorarp.expansion`), output as ``ObjectState.expansion_rate``, where the
-            distance is unknown or ``expansion_accel_std`` is None.
+            (:mod:`monorarp.expansion`), output as ``ObjectState.expansion_rate`` (None where its
+            one-sigma exceeds that filter's prior, 1 /s: a rate only predicted since the box stopped
+            giving a width), where the distance is unknown or ``expansion_accel_std`` is None.
         expansion_accel_std: relative acceleration one-sigma (m/s^2) that sets that filter's
             process noise from each track's distance (``accel_std / d_y``).
         expansion_pixel_std: one-sigma (px) of each side edge of a box in that filter.
@@ -403,6 +404,11 @@ class StateEstimator:
             out, std, acc = self._kalman(ids, d_y, terms, coasting, known, ok, t, cut_bottom, boxes[:, 3] - boxes[:, 1])
             restart = np.array([self._born.get(i) == t for i in ids])
             rate, rate_std = self._expansion.update(ids, boxes, ~coasting & ~side_cut, t, restart, out[:, 1])
+            # A rate known no better than the filter's prior is none: one only predicted since the box
+            # stopped giving a width (cut by a side border, coasting) grows without bound at a constant
+            # closing speed (to 1e25 /s within 5 s of a car beside the ego).
+            known_rate = rate_std <= self._expansion.init_rate_std
+            rate, rate_std = np.where(known_rate, rate, np.nan), np.where(known_rate, rate_std, np.nan)
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)

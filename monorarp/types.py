@@ -88,8 +88,9 @@ class ObjectState:
     # Time (s) since the estimator's filter of this track started (first sighting, or a restart
     # on a jump); None where the estimator keeps no filter.
     age_s: float | None = None
-    # Rate of change of the log box height (1/s; closing speed / distance, from the image alone: the
-    # looming cue of monorarp.expansion) and its one-sigma; None where the estimator has none.
+    # Rate of change of the log box width (1/s; closing speed / distance, from the image alone: the
+    # looming cue of monorarp.expansion) and its one-sigma; None where the estimator has none (or
+    # knows it no better than before any measurement).
     expansion_rate: float | None = None
     expansion_rate_std: float | None = None
 

@@ -109,3 +109,25 @@ def test_state_estimator_outputs_the_rate_and_none_for_a_side_cut_box():
         s = est.update([Track(1, box_at(40.0 - 0.5 * k)), Track(2, (600.0, 150.0, 639.5, 200.0))], k / FPS)
     assert s[1].expansion_rate == pytest.approx(7.5 / (40.0 - 0.5 * 19), rel=0.15)
     assert s[2].expansion_rate is None
+
+
+def test_a_rate_only_predicted_until_it_is_no_better_than_the_prior_is_none():
+    # a car closing at 5 m/s from 20 m, then seen only cut by the side border: the filter predicts its
+    # rate at a constant closing speed, which grows without bound (to contact and beyond); the state
+    # gives it while its sigma is within the prior (1 /s), then none
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, pitch_rad=0.0)
+    est = StateEstimator(cam)
+    outputs = []
+    for k in range(60):
+        box = box_at(20.0 - 5.0 * k / FPS) if k < 15 else (600.0, 150.0, 639.5, 200.0)
+        s = est.update([Track(1, box)], k / FPS)
+        outputs.append((s[1].expansion_rate, s[1].expansion_rate_std) if 1 in s else None)
+    rate, std = outputs[14]
+    assert rate == pytest.approx(5.0 / (20.0 - 5.0 * 14 / FPS), rel=0.25) and std < 0.2
+    assert outputs[15][0] is not None                                   # predicted, still known
+    internal_rate, internal_std = est._expansion.update([1], np.array([[600.0, 150.0, 639.5, 200.0]]),
+                                                        np.array([False]), 60 / FPS)
+    assert internal_rate[0] > 10.0 and internal_std[0] > 100.0          # what the filter alone gives at 4 s
+    later = [o for o in outputs[15:] if o is not None]
+    assert later and all(r is None or (sd <= 1.0 and r < 2.0) for r, sd in later)
+    assert later[-1][0] is None
