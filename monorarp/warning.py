@@ -50,7 +50,11 @@ class ForwardCollisionWarning:
     changes with its yaw, so no looming veto): the fifth round (docs/warning_tuning.md, Fifth round).
     ``looming_side_share`` 0.6: a vehicle moving sideways but still beyond that gap (in its own lane,
     read drifting in) must widen at 0.6 of its closing speed over its distance, as a far one must: the
-    sixth round (docs/warning_tuning.md, Sixth round).
+    sixth round (docs/warning_tuning.md, Sixth round). ``young_far_age_s`` 0.3 at ``young_far_distance_m``
+    20 m and beyond: a track whose filter is younger than that is no threat yet (a far box's first
+    readings, a short first box and the filter's wide prior, read 10-15 m/s of closing); nearer, where
+    a cut-in's filter restarts as the turning car's box changes shape, none is asked (docs/warning_tuning.md,
+    Eighth round).
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -66,7 +70,8 @@ class ForwardCollisionWarning:
                  looming_sigmas: float | None = 1.0, looming_factor: float = 2.5, looming_share: float = 0.0,
                  looming_far_share: float = 0.6, looming_far_distance_m: float = 35.0,
                  looming_exempt_gap_m: float | None = 0.5, looming_side_share: float = 0.6,
-                 ego_speed_margin_mps: float | None = 1.0) -> None:
+                 ego_speed_margin_mps: float | None = 1.0, young_far_age_s: float = 0.3,
+                 young_far_distance_m: float = 20.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):
@@ -75,7 +80,8 @@ class ForwardCollisionWarning:
         for name, v in (("min_on_s", min_on_s), ("hold_s", hold_s), ("lateral_sigmas", lateral_sigmas),
                         ("longitudinal_sigmas", longitudinal_sigmas), ("max_lateral_speed_mps", max_lateral_speed_mps),
                         ("max_closing_speed_mps", max_closing_speed_mps),
-                        ("lateral_velocity_std_mps", lateral_velocity_std_mps), ("min_lateral_age_s", min_lateral_age_s)):
+                        ("lateral_velocity_std_mps", lateral_velocity_std_mps), ("min_lateral_age_s", min_lateral_age_s),
+                        ("young_far_age_s", young_far_age_s), ("young_far_distance_m", young_far_distance_m)):
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be >= 0, got {v}")
         if not np.isfinite(distance_sigmas):
@@ -114,6 +120,7 @@ class ForwardCollisionWarning:
         self.lateral_sigmas, self.lateral_velocity_std_mps = float(lateral_sigmas), float(lateral_velocity_std_mps)
         self.longitudinal_sigmas = float(longitudinal_sigmas)
         self.min_lateral_age_s = float(min_lateral_age_s)
+        self.young_far_age_s, self.young_far_distance_m = float(young_far_age_s), float(young_far_distance_m)
         if accel_sigmas is not None and not (np.isfinite(accel_sigmas) and accel_sigmas >= 0):
             raise ValueError(f"accel_sigmas must be >= 0 or None, got {accel_sigmas}")
         self.accel_sigmas = None if accel_sigmas is None else float(accel_sigmas)
@@ -159,6 +166,7 @@ class ForwardCollisionWarning:
         age = np.array([np.inf if o.age_s is None else o.age_s for o in s], dtype=float)
         v_x = np.where(age >= self.min_lateral_age_s - 1e-9, v_x, 0.0)
         plausible = (np.abs(v_x) <= self.max_lateral_speed_mps) & (-v_y <= self.max_closing_speed_mps)
+        plausible &= ~((age < self.young_far_age_s - 1e-9) & (d_y >= self.young_far_distance_m))
         if self.max_raw_lateral_speed_mps is not None:
             raw_v_x = np.array([o.v_x for o in s], dtype=float)
             plausible &= ~(np.abs(raw_v_x) > self.max_raw_lateral_speed_mps)

@@ -30,3 +30,13 @@ def test_a_tuning_set_shares_no_point_with_what_it_is_held_out_from(tuning, held
         other_points, other_seeds = _points(name)
         assert not points & other_points, (name, sorted(points & other_points)[:3])
         assert not seeds & other_seeds, (name, sorted(seeds & other_seeds)[:3])
+
+
+def test_the_1080p_check_set_shares_no_seed_with_any_other_protocol():
+    _, seeds = _points("nominal_1080p_check.yaml")
+    assert len(seeds) == 60
+    benchmark = {(t.params["scenario"], t.trial) for t in expand_protocol(
+        load_protocol(FCW / "nominal.yaml"), FCW / "nominal.yaml", trials=90)}   # the 2-hour benchmark
+    assert not seeds & benchmark
+    for name in ("tuning.yaml", "risk_tuning.yaml", "risk.yaml", "ci.yaml"):
+        assert not seeds & _points(name)[1], name

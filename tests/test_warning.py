@@ -58,7 +58,8 @@ def test_warned_object_is_the_lowest_ttc():
 
 
 @pytest.mark.parametrize("kw", [{"ttc_threshold_s": 0}, {"ttc_threshold_s": math.nan}, {"hold_s": -1},
-                                {"lateral_sigmas": -0.5}, {"min_lateral_age_s": -1.0},
+                                {"lateral_sigmas": -0.5}, {"min_lateral_age_s": -1.0}, {"young_far_age_s": -0.1},
+                                {"young_far_distance_m": float("nan")},
                                 {"max_raw_lateral_speed_mps": 0.0}, {"max_raw_lateral_speed_mps": math.inf}])
 def test_bad_settings_are_refused(kw):
     with pytest.raises(ValueError):
@@ -139,7 +140,7 @@ def test_lateral_velocity_of_a_young_filter_is_not_trusted_when_asked():
     assert fcw(min_lateral_age_s=1.0).threats({1: young}) == {}
     assert 1 in fcw(min_lateral_age_s=1.0).threats({1: old})
     # an in-lane lead needs no lateral velocity: young or not, it threatens
-    lead = ObjectState(2, 0.2, 20.0, 0.0, -10.0, v_x_std=0.1, age_s=0.1)
+    lead = ObjectState(2, 0.2, 15.0, 0.0, -8.0, v_x_std=0.1, age_s=0.1)
     assert 2 in fcw(min_lateral_age_s=1.0).threats({2: lead})
 
 
@@ -221,3 +222,16 @@ def test_closing_speed_is_capped_at_the_ego_speed():
     assert 1 in fcw(ego_speed_margin_mps=None).threats(s, ego_speed=24.0)
     out = w.update(s, None, 0.0, ego_speed=24.0)
     assert not out.active and out.threat_ids == ()
+
+
+def test_a_young_far_track_is_no_threat_yet_a_young_near_one_is():
+    # a lead 30 m ahead read closing at 12 m/s (TTC 2.5 s): its filter 0.2 s old is no threat yet;
+    # 0.3 s old, or 15 m ahead at the same TTC, it is
+    def lead(d_y, v_y, age):
+        return ObjectState(1, 0.0, d_y, 0.0, v_y, v_x_std=0.1, v_y_std=0.1, age_s=age)
+    assert fcw().threats({1: lead(30.0, -12.0, 0.2)}) == {}
+    assert 1 in fcw().threats({1: lead(30.0, -12.0, 0.3)})
+    assert 1 in fcw().threats({1: lead(15.0, -6.0, 0.0)})
+    assert 1 in fcw(young_far_age_s=0.0).threats({1: lead(30.0, -12.0, 0.0)})
+    assert 1 in fcw(young_far_distance_m=40.0).threats({1: lead(30.0, -12.0, 0.0)})
+    assert 1 in fcw().threats({1: ObjectState(1, 0.0, 30.0, 0.0, -12.0, v_x_std=0.1, v_y_std=0.1)})  # no age: no gate
