@@ -53,7 +53,7 @@ class ForwardCollisionWarning:
     sixth round (docs/warning_tuning.md, Sixth round). ``young_far_age_s`` 0.3 at ``young_far_distance_m``
     20 m and beyond: a track whose filter is younger than that is no threat yet (a far box's first
     readings, a short first box and the filter's wide prior, read 10-15 m/s of closing); nearer, where
-    a cut-in's filter restarts as the turning car's box changes shape, none is asked (docs/warning_tuning.md,
+    a cut-in's filter restarts as the turning car's box changes shape, none is asked (docs/warning_noise.md,
     Eighth round).
     """
 
