@@ -159,7 +159,8 @@ class Pipeline:
         return rec
 
     def _state(self, rec: _Record) -> _Record:
-        rec.states = dict(rec.timed("state", self.state.update, rec.tracks, rec.frame.t, horizon=rec.horizon))
+        extra = {"image": rec.frame.image} if registry.uses(self.state, "image") else {}
+        rec.states = dict(rec.timed("state", self.state.update, rec.tracks, rec.frame.t, horizon=rec.horizon, **extra))
         return rec
 
     def _risk(self, rec: _Record) -> _Record:

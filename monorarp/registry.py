@@ -81,7 +81,8 @@ def uses(component: Any, what: str) -> bool:
     Declared inputs: ``camera`` (the factory gets the run's :class:`~monorarp.camera.CameraModel`),
     ``seed`` (a sweep gives it the run's seed), ``ego_speed`` (a risk stage whose result depends
     on the ``ego_speed`` it is given; the harness may then fall back to the true speed), ``truth``
-    (a detector that needs each frame's ground truth: it runs on simulated frames only).
+    (a detector that needs each frame's ground truth: it runs on simulated frames only), ``image``
+    (a state estimator that takes each frame's image as ``image=``).
     """
     return bool(getattr(component, f"uses_{what}", False))
 

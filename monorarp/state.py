@@ -19,7 +19,8 @@ from monorarp.camera import CameraError, CameraModel
 from monorarp.expansion import ExpansionFilter
 from monorarp.ground_profile import contact_ground
 from monorarp.kalman import kf_predict, kf_update, motion_model
-from monorarp.state_geometry import (BORDER_TOL_PX, border_flags, box_distance, contact_line_cut,
+from monorarp.scale_change import LoomingRegistration, RateWindow
+from monorarp.state_geometry import (BORDER_TOL_PX, border_flags, box_distance, contact_line_cut, fragments,
                                      lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms)
 from monorarp.types import HorizonReading, ObjectState, Track
 
@@ -93,9 +94,23 @@ class StateEstimator:
             docs/warning_tuning.md); ``expansion_accel_std=None, expansion_pixel_std=0.5,
             expansion_constant_speed=False`` is the earlier constant-rate filter, whose sigma was 4x
             too wide at 60-100 m for the looming veto to act there.
+        registration: register each vehicle's image patch between consecutive frames
+            (:mod:`monorarp.scale_change`, given the frame's ``image``) for its scale change, output as
+            ``ObjectState.registered_rate`` (1/s): the mean of its rates over the last
+            ``registration_window_s`` (0.2 s: 3 frames at 15 fps) and its one-sigma, from
+            ``registration_pixel_std`` (px of box width a frame; 0.2 measured on CCRb, CCRs and LVD runs,
+            docs/warning_noise.md, Ninth round). The registration in use is the ``registration``
+            attribute (None: off); a replay of cached tracks may put a recorded one in its place.
+        fragment_cover, fragment_width_ratio, fragment_bottom_px: a track box lying over ``fragment_cover`` of
+            its area inside another track's box at least ``fragment_width_ratio`` times as wide, their
+            bottom edges within ``fragment_bottom_px`` (px at 640 px width; scaled with the image), gets
+            no state: both stand on the same ground row, so at the same distance, where two vehicles
+            cannot overlap in the image; it is a part of the wider one (a wide vehicle's front or
+            rear half read as a car). ``fragment_cover`` None: no such rule.
     """
 
     uses_camera = True   # the registry passes the run's camera
+    uses_image = True    # the pipeline passes each frame's image (``registration``)
 
     def __init__(self, camera: CameraModel | dict, velocity: str = "kalman", motion: str = "ca",
                  process_std: float = 4.5, pixel_std: float = 0.5, vehicle_width_m: float = 1.8,
@@ -113,7 +128,9 @@ class StateEstimator:
                  expansion_pixel_std: float = 1.0,
                  pixel_std_per_height: float = 0.01, max_unmeasured_s: float = 0.5,
                  min_vehicle_width_m: float = 1.4, near_border_frac: float = 0.05,
-                 side_band_frac: float = 0.03) -> None:
+                 side_band_frac: float = 0.03, registration: bool = True, registration_pixel_std: float = 0.2,
+                 registration_window_s: float = 0.2, fragment_cover: float | None = 0.9,
+                 fragment_width_ratio: float = 1.5, fragment_bottom_px: float = 3.0) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -139,6 +156,16 @@ class StateEstimator:
         self._expansion = ExpansionFilter(pixel_std=expansion_pixel_std, process_std=expansion_process_std,
                                           accel_std=expansion_accel_std,
                                           constant_speed=expansion_constant_speed)
+        self.registration = LoomingRegistration(pixel_std=registration_pixel_std) if registration else None
+        self._rate_window = RateWindow(window_s=registration_window_s)
+        if fragment_cover is not None and not (np.isfinite(fragment_cover) and 0 < fragment_cover <= 1):
+            raise ValueError(f"fragment_cover must be in (0, 1] or None, got {fragment_cover}")
+        for name, val in (("fragment_width_ratio", fragment_width_ratio), ("fragment_bottom_px", fragment_bottom_px)):
+            if not (np.isfinite(val) and val >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {val}")
+        self.fragment_cover = None if fragment_cover is None else float(fragment_cover)
+        self.fragment_width_ratio = float(fragment_width_ratio)
+        self.fragment_bottom_px = float(fragment_bottom_px) * self.camera.width / 640.0
         if not reinit_sigmas > 0:
             raise ValueError(f"reinit_sigmas must be > 0, got {reinit_sigmas}")
         if robust_sigmas is not None and not robust_sigmas > 0:
@@ -194,6 +221,9 @@ class StateEstimator:
         self._born: dict[int, float] = {}          # per track: frame time its filter (re)started (s)
         self._measured: dict[int, float] = {}      # per track: frame time of its last distance reading (s)
         self._expansion.reset()
+        self._rate_window.reset()
+        if self.registration is not None:
+            self.registration.reset()
 
     def measure(self, boxes: np.ndarray) -> np.ndarray:
         """(M, 4) boxes -> (M, 2) ``(d_x, d_y)`` (m) with this estimator's geometry parameters."""
@@ -351,8 +381,8 @@ class StateEstimator:
             var = var + (self.grade_gain(d_y) * self.grade_std) ** 2
         return np.sqrt(var)
 
-    def update(self, tracks: Sequence[Track], t: float,
-               horizon: HorizonReading | None = None) -> dict[int, ObjectState]:
+    def update(self, tracks: Sequence[Track], t: float, horizon: HorizonReading | None = None,
+               image: np.ndarray | None = None) -> dict[int, ObjectState]:
         """Estimate every usable track's relative state at frame time ``t`` (s); ValueError on a non-finite ``t``.
 
         ``horizon``: this frame's horizon reading (:mod:`monorarp.horizon`): equation 3 then uses a
@@ -361,10 +391,11 @@ class StateEstimator:
         noise) also widens the filter's measurement noise; a reading with a measured road profile
         (:class:`monorarp.ground_profile.GroundReading`) gives the bottom rows' ground distances and their
         uncertainty (:func:`monorarp.ground_profile.contact_ground`). None: the calibrated horizon with
-        ``horizon_std_px``.
+        ``horizon_std_px``. ``image`` (H x W x 3 RGB or H x W grey): the frame, for ``registration``
+        (None: no ``registered_rate``).
         """
         if horizon is None:
-            return self._update(tracks, t, self.horizon_std_px)
+            return self._update(tracks, t, self.horizon_std_px, image)
         nominal = self.camera
         try:
             try:
@@ -374,11 +405,12 @@ class StateEstimator:
             if horizon.source == "vanishing_point":
                 self._extra_px_var = float(horizon.std_px) ** 2
             self._profile = getattr(horizon, "profile", None)
-            return self._update(tracks, t, float(horizon.std_px))
+            return self._update(tracks, t, float(horizon.std_px), image)
         finally:
             self.camera, self._extra_px_var, self._profile, self._ground_std = nominal, 0.0, None, None
 
-    def _update(self, tracks: Sequence[Track], t: float, horizon_std_px: float) -> dict[int, ObjectState]:
+    def _update(self, tracks: Sequence[Track], t: float, horizon_std_px: float,
+                image: np.ndarray | None = None) -> dict[int, ObjectState]:
         t = float(t)
         if not np.isfinite(t):
             raise ValueError(f"frame time must be finite, got {t}")
@@ -387,6 +419,10 @@ class StateEstimator:
             self._measured.pop(tid, None)
         self._coast = {tr.id: self._coast.get(tr.id, 0) + 1 if tr.coasting else 0 for tr in tracks}
         usable = [tr for tr in tracks if self._coast[tr.id] <= self.max_coast_used]
+        if usable and self.fragment_cover is not None:
+            part = fragments(np.array([tr.box for tr in usable], dtype=float), self.fragment_cover,
+                             self.fragment_width_ratio, self.fragment_bottom_px)
+            usable = [tr for tr, p in zip(usable, part) if not p]
         if not usable:
             return {}
         ids = [tr.id for tr in usable]
@@ -409,6 +445,10 @@ class StateEstimator:
             # closing speed (to 1e25 /s within 5 s of a car beside the ego).
             known_rate = rate_std <= self._expansion.init_rate_std
             rate, rate_std = np.where(known_rate, rate, np.nan), np.where(known_rate, rate_std, np.nan)
+            reg = reg_std = np.full(len(ids), np.nan)
+            if self.registration is not None and image is not None:
+                scale, scale_std = self.registration.update(image, ids, boxes, ~coasting & ~side_cut)
+                reg, reg_std = self._rate_window.update(ids, scale, scale_std, t)
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
@@ -429,9 +469,10 @@ class StateEstimator:
             ok = ok & ~(stale & ~cut_bottom)
             return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac),
                                      age_s=float(t - self._born[tid]), expansion_rate=_finite_or_none(er),
-                                     expansion_rate_std=_finite_or_none(er_std))
-                    for tid, row, sd, ac, good, er, er_std in zip(ids, out, std, acc if acc is not None else [None] * len(ids),
-                                                                   ok, rate, rate_std)
+                                     expansion_rate_std=_finite_or_none(er_std), registered_rate=_finite_or_none(rr),
+                                     registered_rate_std=_finite_or_none(rr_std))
+                    for tid, row, sd, ac, good, er, er_std, rr, rr_std
+                    in zip(ids, out, std, acc if acc is not None else [None] * len(ids), ok, rate, rate_std, reg, reg_std)
                     if good}
         out = self._difference(ids, d_y, terms, known, ok, t)
         return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}

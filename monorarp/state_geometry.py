@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from monorarp.boxes import area, intersection
 from monorarp.camera import CameraModel
 
 BORDER_TOL_PX = 4.0   # a box edge this close to the image border (px) is taken as cut by it
@@ -34,6 +35,20 @@ def eq4_lateral(d_y, d_e, focal_px: float, width_m: float) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------- measurement
+def fragments(boxes: np.ndarray, cover: float = 0.9, width_ratio: float = 1.5,
+              bottom_px: float = 3.0) -> np.ndarray:
+    """(M,) bool: box i lies over ``cover`` of its area inside another box at least ``width_ratio``
+    times as wide whose bottom edge is within ``bottom_px`` of its own. Both then touch the ground
+    on the same row, at the same distance, where two vehicles cannot overlap in the image: box i
+    is a part of the other vehicle. Boxes (M, 4) ``(x1, y1, x2, y2)`` px."""
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    inside = intersection(b[:, None, :], b[None, :, :]) >= cover * np.maximum(area(b), 1e-9)[:, None]
+    width = b[:, 2] - b[:, 0]
+    wider = width[None, :] >= width_ratio * np.maximum(width, 1e-9)[:, None]
+    level = np.abs(b[:, None, 3] - b[None, :, 3]) <= bottom_px
+    return (inside & wider & level & ~np.eye(len(b), dtype=bool)).any(axis=1)
+
+
 def border_flags(camera: CameraModel, boxes: np.ndarray, tol_px: float | None = 1.0) -> np.ndarray:
     """(M, 3) booleans: the box's left edge, right edge, bottom edge touches the image border.
 

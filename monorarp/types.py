@@ -93,6 +93,11 @@ class ObjectState:
     # knows it no better than before any measurement).
     expansion_rate: float | None = None
     expansion_rate_std: float | None = None
+    # The same rate from registering the vehicle's image patch between frames (1/s; monorarp.scale_change,
+    # averaged over the last 0.2 s) and its one-sigma; None where the estimator has no image or no
+    # registration of this vehicle (too small, occluded, cut, coasting, a new track).
+    registered_rate: float | None = None
+    registered_rate_std: float | None = None
 
 
 @dataclass(frozen=True)

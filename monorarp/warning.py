@@ -4,7 +4,8 @@ An object threatens when its rectangle reaches the ego's corridor within ``ttc_t
 constant relative velocity (or acceleration), each motion term counted only beyond its
 uncertainty; implausible motion raises nothing, nor does a box that does not grow as the threat
 requires (looming: at least a floor rate, and from ``looming_far_distance_m`` on ``looming_far_share``
-of the closing speed over the distance; a vehicle turning in across the lane line is exempt); no vehicle
+of the closing speed over the distance; a vehicle turning in across the lane line is exempt; at every
+distance, the registered patch's rate at least ``registered_share`` of it, unless moving sideways); no vehicle
 ahead closes faster than the ego drives; a threat that persists for ``min_on_s`` starts an
 episode that lasts until none has been seen for ``hold_s``. Units: m, m/s, s; ego frame of
 :mod:`monorarp.camera`. The rules in full: docs/warning.md.
@@ -54,7 +55,12 @@ class ForwardCollisionWarning:
     20 m and beyond: a track whose filter is younger than that is no threat yet (a far box's first
     readings, a short first box and the filter's wide prior, read 10-15 m/s of closing); nearer, where
     a cut-in's filter restarts as the turning car's box changes shape, none is asked (docs/warning_noise.md,
-    Eighth round).
+    Eighth round). ``registered_share`` 0.6 with ``registered_sigmas`` 1: a vehicle whose registered
+    patch (``ObjectState.registered_rate``, :mod:`monorarp.scale_change`) grows at less than 0.6 of
+    its claimed closing speed over its distance, by more than one sigma, is no threat, unless it is
+    read moving sideways beyond ``registered_lateral_sigmas`` (2) of its lateral sigma (a turning car's
+    patch changes with its yaw); a rate that precise lags a braking lead by a frame or so, where the box
+    width's lags by several (docs/warning_noise.md, Ninth round). None: no such veto.
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -71,7 +77,8 @@ class ForwardCollisionWarning:
                  looming_far_share: float = 0.6, looming_far_distance_m: float = 35.0,
                  looming_exempt_gap_m: float | None = 0.5, looming_side_share: float = 0.6,
                  ego_speed_margin_mps: float | None = 1.0, young_far_age_s: float = 0.3,
-                 young_far_distance_m: float = 20.0) -> None:
+                 young_far_distance_m: float = 20.0, registered_share: float | None = 0.6,
+                 registered_sigmas: float = 1.0, registered_lateral_sigmas: float = 2.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):
@@ -107,6 +114,15 @@ class ForwardCollisionWarning:
         if not (np.isfinite(looming_side_share) and 0 <= looming_side_share <= 1):
             raise ValueError(f"looming_side_share must be in [0, 1], got {looming_side_share}")
         self.looming_side_share = float(looming_side_share)
+        if registered_share is not None and not (np.isfinite(registered_share) and 0 <= registered_share <= 1):
+            raise ValueError(f"registered_share must be in [0, 1] or None, got {registered_share}")
+        if not (np.isfinite(registered_sigmas) and registered_sigmas >= 0):
+            raise ValueError(f"registered_sigmas must be >= 0, got {registered_sigmas}")
+        self.registered_share = None if registered_share is None else float(registered_share)
+        self.registered_sigmas = float(registered_sigmas)
+        if not (np.isfinite(registered_lateral_sigmas) and registered_lateral_sigmas >= 0):
+            raise ValueError(f"registered_lateral_sigmas must be >= 0, got {registered_lateral_sigmas}")
+        self.registered_lateral_sigmas = float(registered_lateral_sigmas)
         if ego_speed_margin_mps is not None and not (np.isfinite(ego_speed_margin_mps) and ego_speed_margin_mps >= 0):
             raise ValueError(f"ego_speed_margin_mps must be >= 0 or None, got {ego_speed_margin_mps}")
         self.ego_speed_margin_mps = None if ego_speed_margin_mps is None else float(ego_speed_margin_mps)
@@ -171,6 +187,14 @@ class ForwardCollisionWarning:
             raw_v_x = np.array([o.v_x for o in s], dtype=float)
             plausible &= ~(np.abs(raw_v_x) > self.max_raw_lateral_speed_mps)
         x_lo, x_hi, y_lo, y_hi = object_extents(d_x, d_y, self.other_width_m, self.other_length_m)
+        if self.registered_share is not None:
+            rate = np.array([np.nan if o.registered_rate is None else o.registered_rate for o in s], dtype=float)
+            rate_std = np.array([0.0 if o.registered_rate_std is None else o.registered_rate_std for o in s])
+            need = self.registered_share * np.maximum(-np.array([o.v_y for o in s], dtype=float), 0.0) \
+                / np.maximum(np.array([o.d_y for o in s], dtype=float), 1.0)
+            # no rate: no veto; a vehicle read moving sideways turns, and its patch changes with its yaw
+            sideways = significant_lateral_velocity([o.v_x for o in s], v_x_std, self.registered_lateral_sigmas) != 0.0
+            plausible &= ~((rate + self.registered_sigmas * rate_std < need) & ~sideways)
         if self.looming_sigmas is not None:
             rate = np.array([np.nan if o.expansion_rate is None else o.expansion_rate for o in s], dtype=float)
             rate_std = np.array([0.0 if o.expansion_rate_std is None else o.expansion_rate_std for o in s])

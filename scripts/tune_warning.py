@@ -3,7 +3,8 @@
 How the warning stage's defaults were chosen (``monorarp/warning.py``, ``monorarp/state.py``):
 the detector and the tracker run once per run of a protocol (by default the tuning set,
 ``scenarios/fcw/tuning.yaml``, which shares no speed, gap or seed with a scorecard suite or
-the CI subset) and their tracks are cached; then each parameter set of the grid replays only
+the CI subset) and their tracks are cached, with the default state estimator's patch
+registrations (scales per frame and track, which need the frames); then each parameter set of the grid replays only
 the state estimator and the warning stage (a fraction of a second per run, in ``--workers``
 processes) and is scored with the scorecard's own rules: trials passed and false-alarm episodes
 in the nominal runs.
@@ -24,6 +25,8 @@ import multiprocessing
 import pickle
 from pathlib import Path
 
+import numpy as np
+
 from harness.frame_feed import rendered_frames
 from harness.scenario import parse_scenario
 from harness.scorecard.run import ScorecardOptions, build_tasks
@@ -33,6 +36,8 @@ from monorarp import registry
 from monorarp.pipeline import Pipeline, PipelineConfig
 from monorarp.types import FrameResult, RiskEstimate
 
+_NO_IMAGE = np.zeros((1, 1), dtype=np.uint8)   # the recorded registration needs no frame
+
 
 def tracks_key(task) -> str:
     """What the cached tracks depend on: the scenario, the frames, the detector and the tracker."""
@@ -40,23 +45,63 @@ def tracks_key(task) -> str:
     return hashlib.sha256(json.dumps([task.scenario, made_by, task.frames], sort_keys=True).encode()).hexdigest()
 
 
+class RecordingRegistration:
+    """Wraps a state estimator's patch registration and records its scales per frame: ``record[frame
+    index][track id] = (scale, scale_std)`` (set ``frame`` before each update)."""
+
+    def __init__(self, inner) -> None:
+        self.inner, self.frame, self.record = inner, None, {}
+
+    def reset(self) -> None:
+        self.inner.reset()
+
+    def update(self, image, ids, boxes, valid):
+        scale, std = self.inner.update(image, ids, boxes, valid)
+        self.record[self.frame] = {int(i): (float(a), float(b)) for i, a, b in zip(ids, scale, std) if np.isfinite(a)}
+        return scale, std
+
+
+class RecordedRegistration:
+    """Stands in for the registration in a replay: the recorded scales of frame ``frame`` (NaN for a
+    track not recorded); needs no image."""
+
+    def __init__(self, record: dict) -> None:
+        self.record, self.frame = record, None
+
+    def reset(self) -> None:
+        pass
+
+    def update(self, image, ids, boxes, valid):
+        got = self.record.get(self.frame, {})
+        pairs = np.array([got.get(int(i), (np.nan, np.nan)) for i in ids], dtype=float).reshape(-1, 2)
+        return pairs[:, 0], pairs[:, 1]
+
+
 def cached_tracks(task, cache: Path, load: bool = True) -> dict | None:
-    """{camera, frames: [(index, t, tracks)], truths} of one run, computed once (``load`` False: only make sure
-    the cache holds it)."""
+    """{camera, frames: [(index, t, tracks)], truths, registration} of one run, computed once (``load`` False:
+    only make sure the cache holds it). ``registration``: the default state estimator's patch scales
+    (:class:`RecordingRegistration`); a cache from before it had none gets them from the frames rendered again."""
     key = tracks_key(task)
     path = cache / f"{task.id}-{key[:12]}.pkl"
-    if path.is_file():
-        return pickle.loads(path.read_bytes()) if load else None
+    data = pickle.loads(path.read_bytes()) if path.is_file() else None
+    if data is not None and "registration" in data:
+        return data if load else None
     scenario = parse_scenario(task.scenario)
     camera = scenario.camera.model()
-    cfg = PipelineConfig.model_validate(task.pipeline)
-    pipe = Pipeline.from_config(cfg, camera)
+    pipe = None if data is not None else Pipeline.from_config(PipelineConfig.model_validate(task.pipeline), camera)
+    state = registry.build("state", "geometric", {}, camera)
+    state.registration = recorder = RecordingRegistration(state.registration)
     frames, truths = [], []
-    for frame, truth in rendered_frames(scenario, task.frames):
-        dets = pipe.detector.detect(frame.image)
-        frames.append((frame.index, frame.t, pipe.tracker.update(frame.image, dets, frame.t)))
-        truths.append(truth)
-    data = {"camera": camera, "frames": frames, "truths": truths}
+    for k, (frame, truth) in enumerate(rendered_frames(scenario, task.frames)):
+        if pipe is not None:
+            dets = pipe.detector.detect(frame.image)
+            frames.append((frame.index, frame.t, pipe.tracker.update(frame.image, dets, frame.t)))
+            truths.append(truth)
+        tracks = (data["frames"] if data is not None else frames)[k][2]
+        recorder.frame = frame.index
+        state.update(tracks, frame.t, image=frame.image)
+    data = data if data is not None else {"camera": camera, "frames": frames, "truths": truths}
+    data["registration"] = recorder.record
     cache.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     tmp.write_bytes(pickle.dumps(data))
@@ -67,10 +112,15 @@ def cached_tracks(task, cache: Path, load: bool = True) -> dict | None:
 def replay(data: dict, state_kw: dict, warning_kw: dict) -> dict:
     """``warning.*`` metrics of one run with these state-estimator and warning parameters."""
     state = registry.build("state", "geometric", dict(state_kw), data["camera"])
+    recorded = None
+    if state.registration is not None:
+        state.registration = recorded = RecordedRegistration(data["registration"])
     warn = registry.build("warning", "fcw", dict(warning_kw), data["camera"])
     results = []
     for (index, t, tracks), truth in zip(data["frames"], data["truths"]):
-        states = state.update(tracks, t)
+        if recorded is not None:
+            recorded.frame = index
+        states = state.update(tracks, t, image=_NO_IMAGE)
         w = warn.update(states, None, t, ego_speed=truth.ego.speed)   # the true speed: the tracks hold no frames
         results.append(FrameResult(index=index, t=t, detections=[], tracks=tracks, states=states,
                                    risk=RiskEstimate(risk=0.0), warning=w))

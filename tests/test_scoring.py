@@ -173,7 +173,8 @@ def test_evaluate_small_run(tmp_path):
                 {10: 1.6, 11: None}, [A, B, C]),
         _result(1, [Track(10, A), Track(11, B), Track(13, (500, 10, 520, 30))],
                 {10: ObjectState(10, 0.5, 14.0, 0, -1.0, a_y=-2.5, a_y_std=0.75, age_s=0.1,
-                                     expansion_rate=0.125, expansion_rate_std=0.03)}, {10: 3.0},
+                                     expansion_rate=0.125, expansion_rate_std=0.03,
+                                     registered_rate=0.11, registered_rate_std=0.02)}, {10: 3.0},
                 [A, (500, 10, 520, 30)]),
     ]
     m, recs = evaluate(truths, results, EvalConfig(), wall_time_s=0.5, run_info={"scenario": "t"})
@@ -206,6 +207,7 @@ def test_evaluate_small_run(tmp_path):
     assert back[0].d_y_est == pytest.approx(15.3) and back[3].d_y_est == pytest.approx(14.0)
     assert (back[3].a_y_est, back[3].a_y_std, back[3].age_s, back[3].expansion_rate,
             back[3].expansion_rate_std) == (-2.5, 0.75, 0.1, 0.125, 0.03)
+    assert (back[3].registered_rate, back[3].registered_rate_std) == (0.11, 0.02)
     assert math.isnan(back[0].a_y_est) and math.isnan(back[0].age_s)                 # none estimated
     assert math.isnan(back[4].d_y_est) and back[4].counted is False     # occluded object, no state
 

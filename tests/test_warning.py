@@ -235,3 +235,24 @@ def test_a_young_far_track_is_no_threat_yet_a_young_near_one_is():
     assert 1 in fcw(young_far_age_s=0.0).threats({1: lead(30.0, -12.0, 0.0)})
     assert 1 in fcw(young_far_distance_m=40.0).threats({1: lead(30.0, -12.0, 0.0)})
     assert 1 in fcw().threats({1: ObjectState(1, 0.0, 30.0, 0.0, -12.0, v_x_std=0.1, v_y_std=0.1)})  # no age: no gate
+
+
+def test_a_lead_whose_registered_patch_does_not_grow_as_claimed_is_no_threat():
+    # 12 m ahead read closing at 4 m/s (TTC 2.6 s): its patch must grow at 0.6 x 4 / 12 = 0.2 /s
+    def lead(rate, std=0.02, d_x=0.0, v_x=0.0):
+        return {1: ObjectState(1, d_x, 12.0, v_x, -4.0, v_x_std=0.1, v_y_std=0.1, registered_rate=rate,
+                               registered_rate_std=std)}
+    assert fcw().threats(lead(0.15)) == {}                   # 0.15 + 0.02 < 0.2
+    assert 1 in fcw().threats(lead(0.19))                    # within one sigma
+    assert 1 in fcw().threats(lead(0.33))                    # the true 4 / 12
+    assert 1 in fcw().threats(lead(None, None))              # no registration: no veto
+    assert 1 in fcw(registered_share=None).threats(lead(0.0))
+    assert 1 in fcw(registered_sigmas=10.0).threats(lead(0.0))
+    # a car read moving sideways (beyond 2 of its lateral sigmas) turns, and its patch with it: exempt
+    assert 1 in fcw().threats(lead(0.0, d_x=1.6, v_x=-1.5))                # 1.5 m/s > 2 x 0.1
+    assert 1 in fcw().threats(lead(0.0, d_x=0.3, v_x=-0.25))               # in the lane, 0.25 > 0.2
+    assert fcw(registered_lateral_sigmas=3.0).threats(lead(0.0, d_x=0.3, v_x=-0.25)) == {}
+    for bad in ({"registered_share": 1.5}, {"registered_share": float("nan")}, {"registered_sigmas": -1.0},
+                {"registered_lateral_sigmas": float("inf")}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            fcw(**bad)

@@ -92,6 +92,7 @@ def frame_records(truth: FrameTruth, result: FrameResult, cfg: EvalConfig,
             r.d_y_std, r.d_x_std, r.v_y_std, r.v_x_std = map(_f, (st.d_y_std, st.d_x_std, st.v_y_std, st.v_x_std))
             r.a_y_est, r.a_y_std, r.age_s, r.expansion_rate, r.expansion_rate_std = map(
                 _f, (st.a_y, st.a_y_std, st.age_s, st.expansion_rate, st.expansion_rate_std))
+            r.registered_rate, r.registered_rate_std = _f(st.registered_rate), _f(st.registered_rate_std)
         r.ttc_est = _f(result.risk.ttc.get(tr.id))
 
     for g, o in enumerate(objects):

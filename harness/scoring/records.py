@@ -55,6 +55,8 @@ class ObjectRecord:
     age_s: float = NAN           # time since the estimator's filter of the track started (s)
     expansion_rate: float = NAN  # the box's looming rate, closing speed / distance (1/s), where estimated
     expansion_rate_std: float = NAN
+    registered_rate: float = NAN  # the same rate from registering the vehicle's patch between frames (1/s)
+    registered_rate_std: float = NAN
 
     @property
     def is_false_track(self) -> bool:
