@@ -447,7 +447,8 @@ class StateEstimator:
             rate, rate_std = np.where(known_rate, rate, np.nan), np.where(known_rate, rate_std, np.nan)
             reg = reg_std = np.full(len(ids), np.nan)
             if self.registration is not None and image is not None:
-                scale, scale_std = self.registration.update(image, ids, boxes, ~coasting & ~side_cut)
+                # a box cut by the image's bottom (a vehicle at contact) holds only part of its patch
+                scale, scale_std = self.registration.update(image, ids, boxes, ~coasting & ~side_cut & ~cut_bottom)
                 reg, reg_std = self._rate_window.update(ids, scale, scale_std, t)
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.

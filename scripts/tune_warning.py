@@ -67,13 +67,17 @@ class RecordedRegistration:
 
     def __init__(self, record: dict) -> None:
         self.record, self.frame = record, None
+        self.reset()
 
     def reset(self) -> None:
-        pass
+        self._valid: set[int] = set()
 
     def update(self, image, ids, boxes, valid):
+        """As the registration: a track needs a valid box in this call and the previous one."""
         got = self.record.get(self.frame, {})
-        pairs = np.array([got.get(int(i), (np.nan, np.nan)) for i in ids], dtype=float).reshape(-1, 2)
+        pairs = np.array([got.get(int(i), (np.nan, np.nan)) if v and int(i) in self._valid else (np.nan, np.nan)
+                          for i, v in zip(ids, valid)], dtype=float).reshape(-1, 2)
+        self._valid = {int(i) for i, v in zip(ids, valid) if v}
         return pairs[:, 0], pairs[:, 1]
 
 

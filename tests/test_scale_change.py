@@ -167,3 +167,16 @@ def test_a_wide_frame_is_registered_reduced_with_the_same_scale():
     assert out[640][1][0] == pytest.approx(3 * out[None][1][0], rel=1e-2)   # 0.2 px of the reduced width
     with pytest.raises(ValueError, match="max_width"):
         LoomingRegistration(max_width=4)
+
+
+def test_a_box_cut_by_the_image_bottom_is_not_registered():
+    # a vehicle at contact: its box runs off the bottom of the frame, and its patch with it
+    camera = CameraModel.from_fov(640, 360, 60.0, 1.3)
+    est = StateEstimator(camera)
+    seen = []
+    inner = est.registration.update
+    est.registration.update = lambda image, ids, boxes, valid: (seen.append(list(valid)), inner(image, ids, boxes, valid))[1]
+    img = np.zeros((360, 640, 3), np.uint8)
+    est.update([Track(id=5, box=(270.0, 250.0, 370.0, 340.0))], 0.0, image=img)
+    est.update([Track(id=5, box=(265.0, 260.0, 375.0, 360.0))], 1 / 15, image=img)
+    assert seen == [[True], [False]]
