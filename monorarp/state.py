@@ -156,6 +156,9 @@ class StateEstimator:
         self._expansion = ExpansionFilter(pixel_std=expansion_pixel_std, process_std=expansion_process_std,
                                           accel_std=expansion_accel_std,
                                           constant_speed=expansion_constant_speed)
+        for name, val in (("registration_pixel_std", registration_pixel_std), ("registration_window_s", registration_window_s)):
+            if not (np.isfinite(val) and val > 0):
+                raise ValueError(f"{name} must be positive, got {val}")
         self.registration = LoomingRegistration(pixel_std=registration_pixel_std) if registration else None
         self._rate_window = RateWindow(window_s=registration_window_s)
         if fragment_cover is not None and not (np.isfinite(fragment_cover) and 0 < fragment_cover <= 1):
