@@ -6,8 +6,9 @@ uncertainty; implausible motion raises nothing, nor does a box that does not gro
 requires (looming: at least a floor rate, and from ``looming_far_distance_m`` on ``looming_far_share``
 of the closing speed over the distance; a vehicle turning in across the lane line is exempt; at every
 distance, the registered patch's rate at least ``registered_share`` of it, unless moving sideways); no vehicle
-ahead closes faster than the ego drives; a threat that persists for ``min_on_s`` starts an
-episode that lasts until none has been seen for ``hold_s``. Units: m, m/s, s; ego frame of
+ahead closes faster than the ego drives; a threat that persists for ``min_on_s`` (one whose
+registered patch confirms its closing speed: ``confirmed_min_on_s``) starts an episode that lasts
+until none has been seen for ``hold_s``. Units: m, m/s, s; ego frame of
 :mod:`monorarp.camera`. The rules in full: docs/warning.md.
 """
 
@@ -61,6 +62,9 @@ class ForwardCollisionWarning:
     read moving sideways beyond ``registered_lateral_sigmas`` (2) of its lateral sigma (a turning car's
     patch changes with its yaw); a rate that precise lags a braking lead by a frame or so, where the box
     width's lags by several (docs/warning_noise.md, Ninth round). None: no such veto.
+    ``confirmed_min_on_s`` 0 with ``confirm_share`` 1: a threat whose patch grows at least as fast as the
+    closing speed its TTC assumes, by more than ``registered_sigmas``, needs no persistence: two independent
+    cues agree, and the range filter lags a braking lead (docs/warning_confirm.md). None: ``min_on_s`` for all.
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -78,7 +82,8 @@ class ForwardCollisionWarning:
                  looming_exempt_gap_m: float | None = 0.5, looming_side_share: float = 0.6,
                  ego_speed_margin_mps: float | None = 1.0, young_far_age_s: float = 0.3,
                  young_far_distance_m: float = 20.0, registered_share: float | None = 0.6,
-                 registered_sigmas: float = 1.0, registered_lateral_sigmas: float = 2.0) -> None:
+                 registered_sigmas: float = 1.0, registered_lateral_sigmas: float = 2.0,
+                 confirmed_min_on_s: float | None = 0.0, confirm_share: float = 1.0) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):
@@ -123,6 +128,12 @@ class ForwardCollisionWarning:
         if not (np.isfinite(registered_lateral_sigmas) and registered_lateral_sigmas >= 0):
             raise ValueError(f"registered_lateral_sigmas must be >= 0, got {registered_lateral_sigmas}")
         self.registered_lateral_sigmas = float(registered_lateral_sigmas)
+        if confirmed_min_on_s is not None and not (np.isfinite(confirmed_min_on_s) and confirmed_min_on_s >= 0):
+            raise ValueError(f"confirmed_min_on_s must be >= 0 or None, got {confirmed_min_on_s}")
+        if not (np.isfinite(confirm_share) and confirm_share > 0):
+            raise ValueError(f"confirm_share must be positive, got {confirm_share}")
+        self.confirmed_min_on_s = None if confirmed_min_on_s is None else float(confirmed_min_on_s)
+        self.confirm_share = float(confirm_share)
         if ego_speed_margin_mps is not None and not (np.isfinite(ego_speed_margin_mps) and ego_speed_margin_mps >= 0):
             raise ValueError(f"ego_speed_margin_mps must be >= 0 or None, got {ego_speed_margin_mps}")
         self.ego_speed_margin_mps = None if ego_speed_margin_mps is None else float(ego_speed_margin_mps)
@@ -155,6 +166,7 @@ class ForwardCollisionWarning:
         self._track: int | None = None
         self._onset_t: float | None = None
         self._threat_since: float | None = None   # first frame time of the current run of threat frames
+        self._confirmed_since: float | None = None   # the same for confirmed threats
         self._last_threat_t: float | None = None
         self._last_t: float | None = None
 
@@ -165,8 +177,16 @@ class ForwardCollisionWarning:
         stops, it does not come back), so with ``ego_speed_margin_mps`` set a closing speed is
         taken at most ``ego_speed + ego_speed_margin_mps``.
         """
+        return self.assess_threats(states, ego_speed)[0]
+
+    def assess_threats(self, states: dict[int, ObjectState],
+                       ego_speed: float | None = None) -> tuple[dict[int, float], frozenset[int]]:
+        """``(threats, confirmed)``: :meth:`threats`, and the ids among them whose registered patch
+        confirms the closing speed the TTC assumes (``registered_rate`` less ``registered_sigmas`` of its
+        sigma at least ``confirm_share`` of that closing speed over the distance): two independent cues
+        agree, so such a threat needs to persist only ``confirmed_min_on_s``."""
         if not states:
-            return {}
+            return {}, frozenset()
         ids = list(states)
         s = list(states.values())
         d_x = np.array([o.d_x for o in s], dtype=float)
@@ -187,14 +207,17 @@ class ForwardCollisionWarning:
             raw_v_x = np.array([o.v_x for o in s], dtype=float)
             plausible &= ~(np.abs(raw_v_x) > self.max_raw_lateral_speed_mps)
         x_lo, x_hi, y_lo, y_hi = object_extents(d_x, d_y, self.other_width_m, self.other_length_m)
+        reg = np.array([np.nan if o.registered_rate is None else o.registered_rate for o in s], dtype=float)
+        reg_std = np.array([0.0 if o.registered_rate_std is None else o.registered_rate_std for o in s])
+        # a vehicle read moving sideways turns, and its patch changes with its yaw: it neither confirms nor vetoes
+        sideways = significant_lateral_velocity([o.v_x for o in s], v_x_std, self.registered_lateral_sigmas) != 0.0
+        confirmed = (reg - self.registered_sigmas * reg_std >= self.confirm_share * np.maximum(-v_y, 0.0)
+                     / np.maximum(d_y, 1.0)) & ~sideways   # NaN rate: not confirmed
         if self.registered_share is not None:
-            rate = np.array([np.nan if o.registered_rate is None else o.registered_rate for o in s], dtype=float)
-            rate_std = np.array([0.0 if o.registered_rate_std is None else o.registered_rate_std for o in s])
             need = self.registered_share * np.maximum(-np.array([o.v_y for o in s], dtype=float), 0.0) \
                 / np.maximum(np.array([o.d_y for o in s], dtype=float), 1.0)
-            # no rate: no veto; a vehicle read moving sideways turns, and its patch changes with its yaw
-            sideways = significant_lateral_velocity([o.v_x for o in s], v_x_std, self.registered_lateral_sigmas) != 0.0
-            plausible &= ~((rate + self.registered_sigmas * rate_std < need) & ~sideways)
+            # no rate: no veto
+            plausible &= ~((reg + self.registered_sigmas * reg_std < need) & ~sideways)
         if self.looming_sigmas is not None:
             rate = np.array([np.nan if o.expansion_rate is None else o.expansion_rate for o in s], dtype=float)
             rate_std = np.array([0.0 if o.expansion_rate_std is None else o.expansion_rate_std for o in s])
@@ -223,7 +246,8 @@ class ForwardCollisionWarning:
         ttc = time_to_collision(x_lo, x_hi, y_lo, y_hi, v_x, v_y, self.ego_x, self.ego_y, self.ttc_threshold_s,
                                 a_y=a_y)
         ttc = np.where(plausible, ttc, np.nan)
-        return {i: float(v) for i, v in zip(ids, ttc) if np.isfinite(v) and v < self.ttc_threshold_s}
+        threats = {i: float(v) for i, v in zip(ids, ttc) if np.isfinite(v) and v < self.ttc_threshold_s}
+        return threats, frozenset(i for i, c in zip(ids, confirmed) if c and i in threats)
 
     def update(self, states: dict[int, ObjectState], risk: RiskEstimate | None = None,
                t: float = 0.0, ego_speed: float | None = None) -> WarningState:
@@ -236,7 +260,7 @@ class ForwardCollisionWarning:
         if self._last_t is not None and t < self._last_t:
             self.reset()      # time went backwards: a new sequence (e.g. a looped video)
         self._last_t = t
-        threats = self.threats(states, ego_speed)
+        threats, confirmed = self.assess_threats(states, ego_speed)
         order = tuple(sorted(threats, key=lambda i: (threats[i], i)))
         if threats:
             if self._threat_since is None:
@@ -244,8 +268,12 @@ class ForwardCollisionWarning:
             self._last_threat_t = t
         else:
             self._threat_since = None
+        self._confirmed_since = (self._confirmed_since if self._confirmed_since is not None else t) if confirmed else None
         eps = 1e-9
-        if not self._active and threats and t - self._threat_since >= self.min_on_s - eps:
+        persisted = threats and t - self._threat_since >= self.min_on_s - eps
+        persisted = persisted or (self.confirmed_min_on_s is not None and confirmed
+                                  and t - self._confirmed_since >= self.confirmed_min_on_s - eps)
+        if not self._active and persisted:
             self._active, self._onset_t, self._track = True, t, order[0]
             self._episodes += 1
         elif self._active and not threats and t - self._last_threat_t >= self.hold_s - eps:

@@ -256,3 +256,28 @@ def test_a_lead_whose_registered_patch_does_not_grow_as_claimed_is_no_threat():
                 {"registered_lateral_sigmas": float("inf")}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             fcw(**bad)
+
+
+def test_a_threat_its_registered_patch_confirms_comes_on_at_once():
+    # 12 m ahead read closing at 4 m/s (v_y_std 0.1: 3.95 m/s after the 0.5-sigma discount): the TTC assumes a
+    # rate of 3.95 / 12 = 0.329 /s; a patch growing at 0.40 +- 0.02 /s confirms it, one at 0.33 +- 0.02 does not
+    def lead(rate, v_x=0.0):
+        return {1: ObjectState(1, 0.0, 12.0, v_x, -4.0, v_x_std=0.1, v_y_std=0.1, registered_rate=rate,
+                               registered_rate_std=0.02)}
+    dt = 1 / 15
+
+    def onset(states, **kw):
+        w = fcw(min_on_s=0.1, **kw)
+        return next(k for k in range(5) if w.update(states, None, k * dt).active)
+    assert fcw().assess_threats(lead(0.40))[1] == {1}
+    assert fcw().assess_threats(lead(0.33))[1] == frozenset()
+    assert fcw(confirm_share=0.9).assess_threats(lead(0.33))[1] == {1}    # 0.31 >= 0.9 x 0.329
+    assert fcw().assess_threats(lead(0.40, v_x=-1.5))[1] == frozenset()   # turning: its patch proves nothing
+    assert onset(lead(0.40), confirmed_min_on_s=0.0) == 0                 # both cues agree: the first frame
+    assert onset(lead(0.33), confirmed_min_on_s=0.0) == 2                 # the filter alone: min_on_s, 2 frames
+    assert onset(lead(0.40), confirmed_min_on_s=None) == 2                # the rule off
+    assert onset(lead(0.40), confirmed_min_on_s=0.05) == 1
+    for bad in ({"confirmed_min_on_s": -0.1}, {"confirm_share": 0.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            fcw(**bad)
+
