@@ -180,3 +180,14 @@ def test_a_box_cut_by_the_image_bottom_is_not_registered():
     est.update([Track(id=5, box=(270.0, 250.0, 370.0, 340.0))], 0.0, image=img)
     est.update([Track(id=5, box=(265.0, 260.0, 375.0, 360.0))], 1 / 15, image=img)
     assert seen == [[True], [False]]
+
+
+def test_the_3x3_solve_matches_numpy():
+    from monorarp.scale_change import _solve3
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        a = rng.normal(size=(3, 3))
+        a = a @ a.T + 0.05 * np.eye(3)
+        b = rng.normal(size=3)
+        assert np.allclose(_solve3(a, b), np.linalg.solve(a, b), rtol=1e-9, atol=1e-12)
+    assert _solve3(np.zeros((3, 3)), np.ones(3)) is None
