@@ -9,8 +9,10 @@ similarity warp without rotation), started from the boxes' own ratio and shift.
 
 ``s = w_t / w_(t-1) = Z_(t-1) / Z_t`` for a vehicle at depth ``Z``; at a constant closing speed,
 ``(s - 1) / dt`` is the expansion rate ``closing speed / Z_t`` at the current frame exactly
-(:class:`RateWindow` averages it over a few frames: the state stage's ``registered_rate``). Images:
-2-D float32 grey levels, pixels; boxes ``(x1, y1, x2, y2)``, pixels.
+(:class:`RateWindow` averages it over a few frames: the state stage's ``registered_rate``). The shift
+moves the patch centre sideways: with the scale and the depth it gives the vehicle's lateral displacement
+(:func:`lateral_displacement`; the state stage's ``registered_v_x``). Images: 2-D float32 grey levels,
+pixels; boxes ``(x1, y1, x2, y2)``, pixels.
 """
 
 from __future__ import annotations
@@ -124,6 +126,15 @@ def register_scale(prev: np.ndarray, cur: np.ndarray, box_prev, box_cur, margin:
     return ScaleChange(float(s), s_std, (float(ux), float(uy)), bool(ok))
 
 
+def lateral_displacement(centre_x, shift_x, scale, depth_m, fx: float, cx: float) -> np.ndarray:
+    """Lateral displacement (m, camera x: right) of a vehicle point between two frames, from the image
+    column ``centre_x`` (px) of its patch centre in the earlier frame, the patch's fitted ``shift_x`` (px)
+    and ``scale`` (earlier depth / later depth), and its earlier depth ``depth_m`` (m): a point at column
+    ``u`` and depth ``Z`` is at ``X = (u - cx) Z / fx``, and at ``Z / scale`` in the later frame."""
+    centre_x, shift_x, scale, depth_m = (np.asarray(a, dtype=float) for a in (centre_x, shift_x, scale, depth_m))
+    return depth_m / fx * ((centre_x + shift_x - cx) / scale - (centre_x - cx))
+
+
 def region(boxes: np.ndarray, shape: tuple[int, ...], grow: float = 0.5) -> tuple[int, int, int, int]:
     """``(x0, y0, x1, y1)`` px: the part of an image of ``shape`` holding the (N, 4) ``boxes``, each grown
     by ``grow`` of its size on every side (room for the fit's scale and shift), for :func:`gradient_stack`."""
@@ -144,8 +155,9 @@ def _occluded(boxes: np.ndarray, min_overlap: float) -> np.ndarray:
 
 
 class LoomingRegistration:
-    """``update(image, ids, boxes, valid) -> (scale, scale_std)`` per track: each vehicle's image scale
-    since its previous frame (:func:`register_scale`), NaN where there is none.
+    """``update(image, ids, boxes, valid) -> (scale, scale_std, centre_x, shift_x)`` per track: each
+    vehicle's image scale since its previous frame (:func:`register_scale`), and the column of its patch
+    centre in that frame with the patch's fitted shift (px of the full frame), NaN where there is none.
 
     A track is registered when its box was a measurement (``valid``: not coasting, not cut) in this
     frame and in the previous one, and no nearer vehicle's box covers more than ``max_overlap`` of
@@ -173,15 +185,19 @@ class LoomingRegistration:
         self._prev: np.ndarray | None = None
         self._boxes: dict[int, np.ndarray] = {}
 
+    def reduction(self, width: int) -> int:
+        """The integer factor a frame ``width`` px wide is reduced by before registering (1: none)."""
+        return 1 if self.max_width is None else max(1, -(-int(width) // self.max_width))
+
     def update(self, image: np.ndarray, ids: Sequence[int], boxes: np.ndarray,
-               valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Scales and one-sigmas of the (M, 4) ``boxes`` of tracks ``ids`` in ``image`` (H x W x 3 RGB
-        or H x W grey) against the previous call's frame."""
+               valid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Scales, their one-sigmas, patch centre columns and shifts (px) of the (M, 4) ``boxes`` of tracks
+        ``ids`` in ``image`` (H x W x 3 RGB or H x W grey) against the previous call's frame."""
         boxes = np.asarray(boxes, dtype=float).reshape(-1, 4)
         m = len(ids)
-        scale, std = np.full(m, np.nan), np.full(m, np.nan)
+        scale, std, centre, shift = (np.full(m, np.nan) for _ in range(4))
         gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
-        k = 1 if self.max_width is None else max(1, -(-gray.shape[1] // self.max_width))
+        k = self.reduction(gray.shape[1])
         if k > 1:
             gray = cv2.resize(gray, (gray.shape[1] // k, gray.shape[0] // k), interpolation=cv2.INTER_AREA)
             boxes = boxes / k
@@ -197,24 +213,27 @@ class LoomingRegistration:
                 if r.ok:
                     scale[j] = r.scale
                     std[j] = r.scale * self.pixel_std / max(prev_box[2] - prev_box[0], 1.0)
+                    x1, _, x2, _ = _patch(prev_box, 0.0, self.top, gray.shape)
+                    centre[j], shift[j] = (x1 + x2 - 1) / 2.0 * k, r.shift[0] * k
         self._prev = gray
         self._boxes = {i: boxes[j] for j, i in enumerate(ids) if usable[j]}
-        return scale, std
+        return scale, std, centre, shift
 
 
 class RateWindow:
     """``update(ids, scale, scale_std, t) -> (rate, rate_std)``: per track, the mean of the registration
-    rates ``(scale - 1) / dt`` (1/s) of its frames within the last ``window_s`` (s) and its one-sigma
+    rates ``(scale - baseline) / dt`` (1/s) of its frames within the last ``window_s`` (s) and its one-sigma
     (the per-frame sigmas ``scale_std / dt`` taken independent); NaN unless this frame was registered
     and at least ``min_samples`` frames are in the window. ``dt``: time since the previous call (s).
+    ``baseline`` 0 averages per-frame displacements into a speed (:func:`lateral_displacement`, m -> m/s).
     """
 
-    def __init__(self, window_s: float = 0.2, min_samples: int = 2) -> None:
+    def __init__(self, window_s: float = 0.2, min_samples: int = 2, baseline: float = 1.0) -> None:
         if not (np.isfinite(window_s) and window_s > 0):
             raise ValueError(f"window_s must be positive, got {window_s}")
         if min_samples < 1:
             raise ValueError(f"min_samples must be >= 1, got {min_samples}")
-        self.window_s, self.min_samples = float(window_s), int(min_samples)
+        self.window_s, self.min_samples, self.baseline = float(window_s), int(min_samples), float(baseline)
         self.reset()
 
     def reset(self) -> None:
@@ -231,7 +250,7 @@ class RateWindow:
         for j, i in enumerate(ids):
             kept = [x for x in self._samples.get(i, ()) if t - x[0] < self.window_s - 1e-9]
             if dt is not None and dt > 0 and np.isfinite(scale[j]) and np.isfinite(scale_std[j]):
-                kept.append((t, (float(scale[j]) - 1.0) / dt, float(scale_std[j]) / dt))
+                kept.append((t, (float(scale[j]) - self.baseline) / dt, float(scale_std[j]) / dt))
             self._samples[i] = kept
             if kept and kept[-1][0] == t and len(kept) >= self.min_samples:
                 r = np.array([x[1] for x in kept])

@@ -19,7 +19,7 @@ from monorarp.camera import CameraError, CameraModel
 from monorarp.expansion import ExpansionFilter
 from monorarp.ground_profile import contact_ground
 from monorarp.kalman import kf_predict, kf_update, motion_model
-from monorarp.scale_change import LoomingRegistration, RateWindow
+from monorarp.scale_change import LoomingRegistration, RateWindow, lateral_displacement
 from monorarp.state_geometry import (BORDER_TOL_PX, border_flags, box_distance, contact_line_cut, fragments,
                                      lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms)
 from monorarp.types import HorizonReading, ObjectState, Track
@@ -161,6 +161,7 @@ class StateEstimator:
                 raise ValueError(f"{name} must be positive, got {val}")
         self.registration = LoomingRegistration(pixel_std=registration_pixel_std) if registration else None
         self._rate_window = RateWindow(window_s=registration_window_s)
+        self._lateral_window = RateWindow(window_s=registration_window_s, baseline=0.0)
         if fragment_cover is not None and not (np.isfinite(fragment_cover) and 0 < fragment_cover <= 1):
             raise ValueError(f"fragment_cover must be in (0, 1] or None, got {fragment_cover}")
         for name, val in (("fragment_width_ratio", fragment_width_ratio), ("fragment_bottom_px", fragment_bottom_px)):
@@ -225,6 +226,7 @@ class StateEstimator:
         self._measured: dict[int, float] = {}      # per track: frame time of its last distance reading (s)
         self._expansion.reset()
         self._rate_window.reset()
+        self._lateral_window.reset()
         if self.registration is not None:
             self.registration.reset()
 
@@ -448,11 +450,17 @@ class StateEstimator:
             # closing speed (to 1e25 /s within 5 s of a car beside the ego).
             known_rate = rate_std <= self._expansion.init_rate_std
             rate, rate_std = np.where(known_rate, rate, np.nan), np.where(known_rate, rate_std, np.nan)
-            reg = reg_std = np.full(len(ids), np.nan)
+            reg = reg_std = lat = lat_std = np.full(len(ids), np.nan)
             if self.registration is not None and image is not None:
                 # a box cut by the image's bottom (a vehicle at contact) holds only part of its patch
-                scale, scale_std = self.registration.update(image, ids, boxes, ~coasting & ~side_cut & ~cut_bottom)
+                scale, scale_std, centre, shift = self.registration.update(image, ids, boxes,
+                                                                           ~coasting & ~side_cut & ~cut_bottom)
                 reg, reg_std = self._rate_window.update(ids, scale, scale_std, t)
+                depth = out[:, 1] * scale                   # the earlier frame's distance
+                d_x = lateral_displacement(centre, shift, scale, depth, self.camera.fx, self.camera.cx)
+                # the shift known to registration_pixel_std px of the registered (reduced) frame
+                d_x_std = depth / self.camera.fx * self.registration.pixel_std * self.registration.reduction(image.shape[1])
+                lat, lat_std = self._lateral_window.update(ids, d_x, d_x_std, t)
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
@@ -474,9 +482,11 @@ class StateEstimator:
             return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac),
                                      age_s=float(t - self._born[tid]), expansion_rate=_finite_or_none(er),
                                      expansion_rate_std=_finite_or_none(er_std), registered_rate=_finite_or_none(rr),
-                                     registered_rate_std=_finite_or_none(rr_std))
-                    for tid, row, sd, ac, good, er, er_std, rr, rr_std
-                    in zip(ids, out, std, acc if acc is not None else [None] * len(ids), ok, rate, rate_std, reg, reg_std)
+                                     registered_rate_std=_finite_or_none(rr_std), registered_v_x=_finite_or_none(lv),
+                                     registered_v_x_std=_finite_or_none(lv_std))
+                    for tid, row, sd, ac, good, er, er_std, rr, rr_std, lv, lv_std
+                    in zip(ids, out, std, acc if acc is not None else [None] * len(ids), ok, rate, rate_std, reg, reg_std,
+                           lat, lat_std)
                     if good}
         out = self._difference(ids, d_y, terms, known, ok, t)
         return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}

@@ -98,6 +98,10 @@ class ObjectState:
     # registration of this vehicle (too small, occluded, cut, coasting, a new track).
     registered_rate: float | None = None
     registered_rate_std: float | None = None
+    # The vehicle's lateral velocity (m/s, ego x) from the same patches' sideways shift, scale and the
+    # distance (monorarp.scale_change.lateral_displacement, averaged as the rate) and its one-sigma.
+    registered_v_x: float | None = None
+    registered_v_x_std: float | None = None
 
 
 @dataclass(frozen=True)

@@ -65,6 +65,9 @@ class ForwardCollisionWarning:
     ``confirmed_min_on_s`` 0 with ``confirm_share`` 1: a threat whose patch grows at least as fast as the
     closing speed its TTC assumes, by more than ``registered_sigmas``, needs no persistence: two independent
     cues agree, and the range filter lags a braking lead (docs/warning_confirm.md). None: ``min_on_s`` for all.
+    ``registered_lateral_share`` (opt-in, None): a significant sideways speed whose patch moves in that
+    direction, plus ``registered_sigmas`` of its sigma, at less than this share of it counts as none
+    (``ObjectState.registered_v_x``); 0.5 removed a false track and delayed a cut-in (docs/warning_confirm.md).
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -83,7 +86,8 @@ class ForwardCollisionWarning:
                  ego_speed_margin_mps: float | None = 1.0, young_far_age_s: float = 0.3,
                  young_far_distance_m: float = 20.0, registered_share: float | None = 0.6,
                  registered_sigmas: float = 1.0, registered_lateral_sigmas: float = 2.0,
-                 confirmed_min_on_s: float | None = 0.0, confirm_share: float = 1.0) -> None:
+                 confirmed_min_on_s: float | None = 0.0, confirm_share: float = 1.0,
+                 registered_lateral_share: float | None = None) -> None:
         for name, v in (("ttc_threshold_s", ttc_threshold_s), ("other_width_m", other_width_m),
                         ("other_length_m", other_length_m), ("ego_width_m", ego_width_m),
                         ("ego_length_m", ego_length_m)):
@@ -134,6 +138,10 @@ class ForwardCollisionWarning:
             raise ValueError(f"confirm_share must be positive, got {confirm_share}")
         self.confirmed_min_on_s = None if confirmed_min_on_s is None else float(confirmed_min_on_s)
         self.confirm_share = float(confirm_share)
+        if registered_lateral_share is not None and not (np.isfinite(registered_lateral_share)
+                                                         and 0 <= registered_lateral_share <= 1):
+            raise ValueError(f"registered_lateral_share must be in [0, 1] or None, got {registered_lateral_share}")
+        self.registered_lateral_share = None if registered_lateral_share is None else float(registered_lateral_share)
         if ego_speed_margin_mps is not None and not (np.isfinite(ego_speed_margin_mps) and ego_speed_margin_mps >= 0):
             raise ValueError(f"ego_speed_margin_mps must be >= 0 or None, got {ego_speed_margin_mps}")
         self.ego_speed_margin_mps = None if ego_speed_margin_mps is None else float(ego_speed_margin_mps)
@@ -199,9 +207,19 @@ class ForwardCollisionWarning:
             v_y = np.maximum(v_y, -(max(float(ego_speed), 0.0) + self.ego_speed_margin_mps))
         v_x_std = np.array([self.lateral_velocity_std_mps if o.v_x_std is None else o.v_x_std for o in s])
         v_x = significant_lateral_velocity([o.v_x for o in s], v_x_std, self.lateral_sigmas)
+        refuted = np.zeros(len(s), dtype=bool)
+        if self.registered_lateral_share is not None:
+            # a sideways motion the patch's own shift does not show (its lateral speed in that direction,
+            # plus registered_sigmas of its sigma, under the share of the filter's): no sideways motion
+            lat = np.array([np.nan if o.registered_v_x is None else o.registered_v_x for o in s], dtype=float)
+            lat_std = np.array([0.0 if o.registered_v_x_std is None else o.registered_v_x_std for o in s])
+            refuted = (v_x != 0.0) & (lat * np.sign(v_x) + self.registered_sigmas * lat_std
+                                      < self.registered_lateral_share * np.abs(v_x))   # NaN: not refuted
         age = np.array([np.inf if o.age_s is None else o.age_s for o in s], dtype=float)
         v_x = np.where(age >= self.min_lateral_age_s - 1e-9, v_x, 0.0)
+        # an implausible lateral reading stays a sign of a faulty state, refuted or not
         plausible = (np.abs(v_x) <= self.max_lateral_speed_mps) & (-v_y <= self.max_closing_speed_mps)
+        v_x = np.where(refuted, 0.0, v_x)
         plausible &= ~((age < self.young_far_age_s - 1e-9) & (d_y >= self.young_far_distance_m))
         if self.max_raw_lateral_speed_mps is not None:
             raw_v_x = np.array([o.v_x for o in s], dtype=float)
@@ -210,7 +228,8 @@ class ForwardCollisionWarning:
         reg = np.array([np.nan if o.registered_rate is None else o.registered_rate for o in s], dtype=float)
         reg_std = np.array([0.0 if o.registered_rate_std is None else o.registered_rate_std for o in s])
         # a vehicle read moving sideways turns, and its patch changes with its yaw: it neither confirms nor vetoes
-        sideways = significant_lateral_velocity([o.v_x for o in s], v_x_std, self.registered_lateral_sigmas) != 0.0
+        sideways = (significant_lateral_velocity([o.v_x for o in s], v_x_std, self.registered_lateral_sigmas) != 0.0) \
+            & ~refuted
         confirmed = (reg - self.registered_sigmas * reg_std >= self.confirm_share * np.maximum(-v_y, 0.0)
                      / np.maximum(d_y, 1.0)) & ~sideways   # NaN rate: not confirmed
         if self.registered_share is not None:

@@ -4,7 +4,7 @@ How the warning stage's defaults were chosen (``monorarp/warning.py``, ``monorar
 the detector and the tracker run once per run of a protocol (by default the tuning set,
 ``scenarios/fcw/tuning.yaml``, which shares no speed, gap or seed with a scorecard suite or
 the CI subset) and their tracks are cached, with the default state estimator's patch
-registrations (scales per frame and track, which need the frames); then each parameter set of the grid replays only
+registrations (scales, patch centres and shifts per frame and track, which need the frames); then each parameter set of the grid replays only
 the state estimator and the warning stage (a fraction of a second per run, in ``--workers``
 processes) and is scored with the scorecard's own rules: trials passed and false-alarm episodes
 in the nominal runs.
@@ -45,40 +45,54 @@ def tracks_key(task) -> str:
     return hashlib.sha256(json.dumps([task.scenario, made_by, task.frames], sort_keys=True).encode()).hexdigest()
 
 
+#: what a cache's ``registration`` holds: 2 = (scale, scale_std, centre_x, shift_x) per frame and track
+REGISTRATION_VERSION = 2
+
+
 class RecordingRegistration:
-    """Wraps a state estimator's patch registration and records its scales per frame: ``record[frame
-    index][track id] = (scale, scale_std)`` (set ``frame`` before each update)."""
+    """Wraps a state estimator's patch registration and records its results per frame: ``record[frame
+    index][track id] = (scale, scale_std, centre_x, shift_x)`` (set ``frame`` before each update), and the
+    frame's reduction factor (``k``)."""
 
     def __init__(self, inner) -> None:
-        self.inner, self.frame, self.record = inner, None, {}
+        self.inner, self.frame, self.record, self.k = inner, None, {}, 1
+        self.pixel_std = inner.pixel_std
 
     def reset(self) -> None:
         self.inner.reset()
 
+    def reduction(self, width: int) -> int:
+        return self.inner.reduction(width)
+
     def update(self, image, ids, boxes, valid):
-        scale, std = self.inner.update(image, ids, boxes, valid)
-        self.record[self.frame] = {int(i): (float(a), float(b)) for i, a, b in zip(ids, scale, std) if np.isfinite(a)}
-        return scale, std
+        out = self.inner.update(image, ids, boxes, valid)
+        self.k = self.inner.reduction(image.shape[1])
+        self.record[self.frame] = {int(i): tuple(float(v) for v in vals) for i, *vals in zip(ids, *out)
+                                   if np.isfinite(vals[0])}
+        return out
 
 
 class RecordedRegistration:
-    """Stands in for the registration in a replay: the recorded scales of frame ``frame`` (NaN for a
-    track not recorded); needs no image."""
+    """Stands in for the registration in a replay: the recorded results of frame ``frame`` (NaN for a
+    track not recorded); needs no image. ``k``: the recorded frames' reduction factor."""
 
-    def __init__(self, record: dict) -> None:
-        self.record, self.frame = record, None
+    def __init__(self, record: dict, pixel_std: float = 0.2, k: int = 1) -> None:
+        self.record, self.frame, self.pixel_std, self.k = record, None, pixel_std, k
         self.reset()
+
+    def reduction(self, width: int) -> int:
+        return self.k
 
     def reset(self) -> None:
         self._valid: set[int] = set()
 
     def update(self, image, ids, boxes, valid):
         """As the registration: a track needs a valid box in this call and the previous one."""
-        got = self.record.get(self.frame, {})
-        pairs = np.array([got.get(int(i), (np.nan, np.nan)) if v and int(i) in self._valid else (np.nan, np.nan)
-                          for i, v in zip(ids, valid)], dtype=float).reshape(-1, 2)
+        got, none = self.record.get(self.frame, {}), (np.nan,) * 4
+        rows = np.array([got.get(int(i), none) if v and int(i) in self._valid else none
+                         for i, v in zip(ids, valid)], dtype=float).reshape(-1, 4)
         self._valid = {int(i) for i, v in zip(ids, valid) if v}
-        return pairs[:, 0], pairs[:, 1]
+        return rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3]
 
 
 def cached_tracks(task, cache: Path, load: bool = True) -> dict | None:
@@ -88,7 +102,7 @@ def cached_tracks(task, cache: Path, load: bool = True) -> dict | None:
     key = tracks_key(task)
     path = cache / f"{task.id}-{key[:12]}.pkl"
     data = pickle.loads(path.read_bytes()) if path.is_file() else None
-    if data is not None and "registration" in data:
+    if data is not None and data.get("registration_version") == REGISTRATION_VERSION:
         return data if load else None
     scenario = parse_scenario(task.scenario)
     camera = scenario.camera.model()
@@ -105,7 +119,8 @@ def cached_tracks(task, cache: Path, load: bool = True) -> dict | None:
         recorder.frame = frame.index
         state.update(tracks, frame.t, image=frame.image)
     data = data if data is not None else {"camera": camera, "frames": frames, "truths": truths}
-    data["registration"] = recorder.record
+    data["registration"], data["registration_k"] = recorder.record, recorder.k
+    data["registration_version"] = REGISTRATION_VERSION
     cache.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     tmp.write_bytes(pickle.dumps(data))
@@ -118,7 +133,8 @@ def replay(data: dict, state_kw: dict, warning_kw: dict) -> dict:
     state = registry.build("state", "geometric", dict(state_kw), data["camera"])
     recorded = None
     if state.registration is not None:
-        state.registration = recorded = RecordedRegistration(data["registration"])
+        state.registration = recorded = RecordedRegistration(data["registration"], state.registration.pixel_std,
+                                                             data.get("registration_k", 1))
     warn = registry.build("warning", "fcw", dict(warning_kw), data["camera"])
     results = []
     for (index, t, tracks), truth in zip(data["frames"], data["truths"]):

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from monorarp.camera import CameraModel
-from monorarp.scale_change import LoomingRegistration, RateWindow, gradient_stack, region, register_scale
+from monorarp.scale_change import (LoomingRegistration, RateWindow, gradient_stack, lateral_displacement, region,
+                                   register_scale)
 from monorarp.state import StateEstimator
 from monorarp.state_geometry import fragments
 from monorarp.types import Track
@@ -63,16 +64,16 @@ def test_the_registration_needs_two_frames_a_valid_box_and_no_nearer_box_over_it
     reg = LoomingRegistration(pixel_std=0.2)
     prev = texture()
     near = (250.0, 150.0, 300.0, 260.0)                     # lower bottom edge: nearer, overlaps box 1
-    s0, sd0 = reg.update(prev, [1, 2], np.array([BOX, near]), np.array([True, True]))
+    s0, sd0, *_ = reg.update(prev, [1, 2], np.array([BOX, near]), np.array([True, True]))
     assert np.isnan(s0).all() and np.isnan(sd0).all()      # nothing before
     cur = scaled(prev, 1.03)
-    s1, sd1 = reg.update(cur, [1, 2], np.array([box_scaled(BOX, 1.03), box_scaled(near, 1.03)]), np.array([True, True]))
+    s1, sd1, *_ = reg.update(cur, [1, 2], np.array([box_scaled(BOX, 1.03), box_scaled(near, 1.03)]), np.array([True, True]))
     assert np.isnan(s1[0])                                   # box 1 lies behind box 2
     assert s1[1] == pytest.approx(1.03, abs=2e-3)
     assert sd1[1] == pytest.approx(s1[1] * 0.2 / 50.0)      # pixel_std over the previous box's width
     reg.reset()
     reg.update(prev, [1], np.array([BOX]), np.array([True]))
-    s2, _ = reg.update(cur, [1], np.array([box_scaled(BOX, 1.03)]), np.array([False]))
+    s2, *_ = reg.update(cur, [1], np.array([box_scaled(BOX, 1.03)]), np.array([False]))
     assert np.isnan(s2[0])                                   # a coasting or cut box is no measurement
     with pytest.raises(ValueError):
         LoomingRegistration(pixel_std=0.0)
@@ -191,3 +192,27 @@ def test_the_3x3_solve_matches_numpy():
         b = rng.normal(size=3)
         assert np.allclose(_solve3(a, b), np.linalg.solve(a, b), rtol=1e-9, atol=1e-12)
     assert _solve3(np.zeros((3, 3)), np.ones(3)) is None
+
+
+def test_the_lateral_displacement_inverts_the_projection():
+    # a point at (X, Z) moves to (X', Z'); cv2.projectPoints gives its columns; s = Z / Z'
+    k = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 180.0], [0.0, 0.0, 1.0]])
+    for (x0, z0), (x1, z1) in (((1.5, 20.0), (1.2, 18.0)), ((-3.7, 9.0), (-3.0, 8.5)), ((0.0, 40.0), (0.4, 41.0))):
+        (u0, u1), _ = cv2.projectPoints(np.array([[x0, 0.5, z0], [x1, 0.5, z1]]), np.zeros(3), np.zeros(3), k, None)
+        u0, u1 = u0[0, 0], u1[0, 0]
+        assert lateral_displacement(u0, u1 - u0, z0 / z1, z0, 500.0, 320.0) == pytest.approx(x1 - x0, abs=1e-9)
+
+
+def test_the_state_stage_outputs_the_registered_lateral_velocity_of_a_vehicle_moving_sideways():
+    camera = CameraModel.from_fov(640, 360, 60.0, 1.3)
+    est = StateEstimator(camera)
+    base = texture(4)
+    dt, step = 1.0 / 15.0, 3.0                      # 3 px a frame to the right, no scale change
+    for k in range(4):
+        img = scaled(base, 1.0, shift=(step * k, 0.0))
+        st = est.update([Track(id=3, box=box_scaled(BOX, 1.0, shift=(step * k, 0.0)))], k * dt,
+                        image=np.dstack([img] * 3).clip(0, 255).astype(np.uint8))
+    o = st[3]
+    assert o.registered_v_x == pytest.approx(o.d_y / camera.fx * step / dt, rel=0.05)
+    assert o.registered_v_x_std == pytest.approx(o.d_y / camera.fx * 0.2 / dt / math.sqrt(3), rel=0.05)
+    assert abs(o.registered_rate) < 0.02

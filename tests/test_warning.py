@@ -281,3 +281,20 @@ def test_a_threat_its_registered_patch_confirms_comes_on_at_once():
         with pytest.raises(ValueError, match=next(iter(bad))):
             fcw(**bad)
 
+
+
+def test_a_sideways_motion_the_registered_patch_does_not_show_is_none():
+    # next lane (3.7 m right), 8 m ahead, read drifting in at 3 m/s (sure: sigma 0.1), closing at 4 m/s
+    def car(lat, lat_std=0.1):
+        return {1: ObjectState(1, 3.7, 8.0, -3.0, -4.0, v_x_std=0.1, v_y_std=0.1, registered_v_x=lat,
+                               registered_v_x_std=lat_std)}
+    assert 1 in fcw().threats(car(0.0))                                    # the rule off (default)
+    on = fcw(registered_lateral_share=0.5)
+    assert on.threats(car(0.0)) == {}                                      # the patch stays put: no cut-in
+    assert on.threats(car(-1.0)) == {}                                     # 1.0 + 0.1 < 0.5 x (3 - 3 x 0.1)
+    assert on.threats(car(+2.0)) == {}                                     # moving away
+    assert 1 in on.threats(car(-2.0))                                      # the patch moves in too: a cut-in
+    assert 1 in on.threats(car(-1.0, lat_std=0.5))                         # within its sigma
+    assert 1 in on.threats(car(None, None))                                # no patch: the filter's reading
+    with pytest.raises(ValueError, match="registered_lateral_share"):
+        fcw(registered_lateral_share=1.5)

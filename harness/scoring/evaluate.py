@@ -93,6 +93,7 @@ def frame_records(truth: FrameTruth, result: FrameResult, cfg: EvalConfig,
             r.a_y_est, r.a_y_std, r.age_s, r.expansion_rate, r.expansion_rate_std = map(
                 _f, (st.a_y, st.a_y_std, st.age_s, st.expansion_rate, st.expansion_rate_std))
             r.registered_rate, r.registered_rate_std = _f(st.registered_rate), _f(st.registered_rate_std)
+            r.registered_v_x, r.registered_v_x_std = _f(st.registered_v_x), _f(st.registered_v_x_std)
         r.ttc_est = _f(result.risk.ttc.get(tr.id))
 
     for g, o in enumerate(objects):

@@ -57,6 +57,8 @@ class ObjectRecord:
     expansion_rate_std: float = NAN
     registered_rate: float = NAN  # the same rate from registering the vehicle's patch between frames (1/s)
     registered_rate_std: float = NAN
+    registered_v_x: float = NAN   # lateral velocity from the same patches' shift (m/s)
+    registered_v_x_std: float = NAN
 
     @property
     def is_false_track(self) -> bool:
