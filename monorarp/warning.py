@@ -287,7 +287,10 @@ class ForwardCollisionWarning:
             self._last_threat_t = t
         else:
             self._threat_since = None
-        self._confirmed_since = (self._confirmed_since if self._confirmed_since is not None else t) if confirmed else None
+        if not confirmed:
+            self._confirmed_since = None
+        elif self._confirmed_since is None:
+            self._confirmed_since = t
         eps = 1e-9
         persisted = threats and t - self._threat_since >= self.min_on_s - eps
         persisted = persisted or (self.confirmed_min_on_s is not None and confirmed
