@@ -65,6 +65,8 @@ class ForwardCollisionWarning:
     ``confirmed_min_on_s`` 0 with ``confirm_share`` 1: a threat whose patch grows at least as fast as the
     closing speed its TTC assumes, by more than ``registered_sigmas``, needs no persistence: two independent
     cues agree, and the range filter lags a braking lead (docs/warning_confirm.md). None: ``min_on_s`` for all.
+    With the state stage's opt-in fusion of the patch's scale (``fusion_sigmas``) the two cues are one: set it
+    to None there (docs/scale_fusion.md).
     ``registered_lateral_share`` (opt-in, None): a significant sideways speed whose patch moves in that
     direction, plus ``registered_sigmas`` of its sigma, at less than this share of it counts as none
     (``ObjectState.registered_v_x``); 0.5 removed a false track and delayed a cut-in (docs/warning_confirm.md).
