@@ -104,9 +104,9 @@ class StateEstimator:
         fusion_sigmas: opt-in (None: off): the registered scale of each frame is also a measurement of the
             range filter (:meth:`_fuse_scale`: the distance ratio between frames, independent of the box's bottom
             edge, which the filter smooths and so lags a braking lead), skipped where it lies beyond this many
-            sigmas of the filter's prediction. 5 lifts the risk AUROC to 0.9505 but doubles the median velocity
-            error and costs distance accuracy near the ego (the patch grows ~10 % slower than the truth), so
-            it is off (the twelfth tuning round, docs/scale_fusion.md).
+            sigmas of the filter's prediction (``motion="ca"`` only). 5 lifts the risk AUROC to 0.9505 but
+            doubles the median velocity error and costs distance accuracy near the ego (the per-frame scale reads
+            1-2 % slow), so it is off (the twelfth tuning round, docs/scale_fusion.md).
         fusion_pixel_std: the scale's one-sigma (px of box width) in that measurement (None:
             ``registration_pixel_std``).
         longitudinal_process_std: the range filter's process noise on the longitudinal axis (m/s^3 for
@@ -557,6 +557,9 @@ class StateEstimator:
         behind the camera. The predicted distance is clamped into ``[0, near_limit]`` there
         (velocity and acceleration along y zeroed at 0), so a vehicle that stays that close
         (e.g. after a crash) is not extrapolated through the ego.
+
+        ``scale``: this frame's registered ``(scale, scale_std)`` per track, fused after the boxes
+        (:meth:`_fuse_scale`); None: not fused.
         """
         m, n = len(ids), len(self._prior_var)
         nb = 0 if self._bias_var is None else 1
