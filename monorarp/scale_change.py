@@ -26,6 +26,7 @@ import numpy as np
 from monorarp.boxes import area, intersection
 
 MIN_PATCH_PX = 8          # a box narrower or lower than this is not registered
+INTERPOLATIONS = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC}   # of the current image at the warped points
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,7 @@ def _solve3(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float] | None:
 
 def register_scale(prev: np.ndarray, cur: np.ndarray, box_prev, box_cur, margin: float = 0.0, top: float = 0.3,
                    max_points: int = 1200, iterations: int = 8, max_change: float = 0.3, tol: float = 1e-4,
-                   origin: tuple[int, int] = (0, 0)) -> ScaleChange:
+                   origin: tuple[int, int] = (0, 0), interpolation: str = "linear") -> ScaleChange:
     """Scale of the vehicle in ``box_prev`` of the grey image ``prev`` as seen in ``cur``, the
     :func:`gradient_stack` of the current frame (module docstring). ``top``: the top fraction of the
     box left out (roof and rear window, further away than the rear face); ``max_points``: the patch
@@ -81,7 +82,10 @@ def register_scale(prev: np.ndarray, cur: np.ndarray, box_prev, box_cur, margin:
     ``box_cur``: its box in ``cur`` (the start of the fit). ``max_change``: a fitted scale further
     than this from 1 (relative), or a shift of more than half the patch, is not ``ok``. ``origin``: the
     image pixel ``(x, y)`` that is ``cur[0, 0]`` (a stack of a part of the frame, :func:`region`).
+    ``interpolation``: of ``cur`` at the warped points, a key of :data:`INTERPOLATIONS`; bilinear pulls a
+    small scale towards 1 on sharp edges (it blurs by an amount that varies with the sub-pixel phase).
     """
+    interp = INTERPOLATIONS[interpolation]
     X1, Y1, X2, Y2 = _patch(box_prev, margin, top, prev.shape)
     bad = ScaleChange(float("nan"), float("nan"), (float("nan"), float("nan")), False)
     if X2 - X1 < MIN_PATCH_PX or Y2 - Y1 < MIN_PATCH_PX:
@@ -102,7 +106,7 @@ def register_scale(prev: np.ndarray, cur: np.ndarray, box_prev, box_cur, margin:
     J = np.empty((n, 3), dtype=np.float64)     # d residual / d (scale, shift x, shift y), per point
     for _ in range(iterations):
         mx, my = (cx - ox + ux + s * rx).astype(np.float32), (cy - oy + uy + s * ry).astype(np.float32)
-        w = cv2.remap(stack, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(n, 3)
+        w = cv2.remap(stack, mx, my, interp, borderMode=cv2.BORDER_REPLICATE).reshape(n, 3)
         r = tmpl.ravel() - w[:, 0]
         J[:, 1], J[:, 2] = w[:, 1], w[:, 2]
         J[:, 0] = J[:, 1] * rxf + J[:, 2] * ryf
@@ -114,7 +118,7 @@ def register_scale(prev: np.ndarray, cur: np.ndarray, box_prev, box_cur, margin:
         if abs(d[0]) < tol and abs(d[1]) < 0.01 and abs(d[2]) < 0.01:
             break
     mx, my = (cx - ox + ux + s * rx).astype(np.float32), (cy - oy + uy + s * ry).astype(np.float32)
-    r = tmpl - cv2.remap(stack[..., 0], mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    r = tmpl - cv2.remap(stack[..., 0], mx, my, interp, borderMode=cv2.BORDER_REPLICATE)
     sigma2 = float(np.mean(r * r)) * n / max(n - 3, 1)
     try:
         cov = sigma2 * np.linalg.inv(A)
@@ -171,13 +175,17 @@ class LoomingRegistration:
     """
 
     def __init__(self, pixel_std: float = 0.2, max_overlap: float = 0.05, top: float = 0.3,
-                 max_width: int | None = 640) -> None:
+                 max_width: int | None = 640, interpolation: str = "linear") -> None:
         if not (np.isfinite(pixel_std) and pixel_std > 0):
             raise ValueError(f"pixel_std must be positive, got {pixel_std}")
+        if not (np.isfinite(top) and 0 <= top < 1):
+            raise ValueError(f"top must be in [0, 1), got {top}")
+        if interpolation not in INTERPOLATIONS:
+            raise ValueError(f"interpolation must be one of {sorted(INTERPOLATIONS)}, got {interpolation!r}")
         if max_width is not None and max_width < 2 * MIN_PATCH_PX:
             raise ValueError(f"max_width must be at least {2 * MIN_PATCH_PX} px or None, got {max_width}")
         self.pixel_std, self.max_overlap, self.top = float(pixel_std), float(max_overlap), float(top)
-        self.max_width = max_width
+        self.max_width, self.interpolation = max_width, interpolation
         self.reset()
 
     def reset(self) -> None:
@@ -209,7 +217,8 @@ class LoomingRegistration:
             stack = gradient_stack(gray[y0:y1, x0:x1])      # the gradients where the patches are, not everywhere
             for j in todo:
                 prev_box = self._boxes[ids[j]]
-                r = register_scale(self._prev, stack, prev_box, boxes[j], top=self.top, origin=(x0, y0))
+                r = register_scale(self._prev, stack, prev_box, boxes[j], top=self.top, origin=(x0, y0),
+                                   interpolation=self.interpolation)
                 if r.ok:
                     scale[j] = r.scale
                     std[j] = r.scale * self.pixel_std / max(prev_box[2] - prev_box[0], 1.0)

@@ -508,28 +508,43 @@ def test_a_narrow_box_near_the_side_border_is_taken_as_cut(level_cam):
     assert StateEstimator(level_cam, min_vehicle_width_m=0.0).border_cut_boxes(np.array([short]))[0][2] == 620.0
 
 
+def settled_v_x_std(camera, box, **kw) -> float:
+    """Lateral-velocity one-sigma (m/s) of a track held at ``box`` for 10 frames."""
+    est = StateEstimator(camera, **kw)
+    for k in range(10):
+        out = est.update([Track(1, box)], k / FPS)
+    return out[1].v_x_std
+
+
 def test_a_far_edge_in_the_side_band_gets_the_side_cut_lateral_uncertainty(level_cam):
     """A next-lane car whose far edge lies within side_band_frac of the border (not cut) reports at
     least side_cut_lateral_std_mps of lateral-velocity uncertainty; one further in does not."""
-    def v_x_std(box, **kw):
-        est = StateEstimator(level_cam, **kw)
-        for k in range(10):
-            out = est.update([Track(1, box)], k / FPS)
-        return out[1].v_x_std
-
     near = vehicle_box(level_cam, 3.7, 10.0)
     shift = 639.5 - 10.0 - near[2]          # 10 px from the border: inside 0.03 * 640 = 19 px, outside 4 px
     in_band = (near[0] + shift, near[1], near[2] + shift, near[3])
     away = vehicle_box(level_cam, 3.7, 20.0)
     assert 639.5 - away[2] > 0.03 * 640
-    assert v_x_std(in_band) >= 2.0
-    assert v_x_std(in_band, side_band_frac=0.0) < 1.0
-    assert v_x_std(away) < 1.0
+    assert settled_v_x_std(level_cam, in_band) >= 2.0
+    assert settled_v_x_std(level_cam, in_band, side_band_frac=0.0) < 1.0
+    assert settled_v_x_std(level_cam, away) < 1.0
     left = (639.0 - in_band[2], in_band[1], 639.0 - in_band[0], in_band[3])   # mirrored: the left border
-    assert v_x_std(left) >= 2.0
+    assert settled_v_x_std(level_cam, left) >= 2.0
     for bad in (-0.1, 0.5, float("nan")):
         with pytest.raises(ValueError, match="side_band_frac"):
             StateEstimator(level_cam, side_band_frac=bad)
+
+
+def test_a_box_too_narrow_for_a_vehicle_gets_the_side_cut_lateral_uncertainty(level_cam):
+    """A box narrower than min_vehicle_width_m at its distance, away from the borders, holds a part of a
+    vehicle (its far edge is not the vehicle's): at least side_cut_lateral_std_mps of lateral-velocity
+    uncertainty; a whole car's box at the same place does not get it."""
+    whole = vehicle_box(level_cam, 3.7, 9.0)
+    cx = (whole[0] + whole[2]) / 2
+    w_min = level_cam.fx * 1.4 / (9.0 - 0.0)          # 1.4 m at about the box's distance, px
+    part = (cx - 0.3 * w_min, whole[1], cx + 0.3 * w_min, whole[3])    # about 0.85 m wide
+    assert settled_v_x_std(level_cam, whole) < 1.0
+    assert settled_v_x_std(level_cam, part) >= 2.0
+    assert settled_v_x_std(level_cam, part, min_vehicle_width_m=0.0) < 1.0
 
 
 def test_border_tolerance_scales_with_the_frame_width():
