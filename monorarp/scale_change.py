@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from monorarp.boxes import area, intersection
+from monorarp.state_geometry import occluded
 
 MIN_PATCH_PX = 8          # a box narrower or lower than this is not registered
 INTERPOLATIONS = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC}   # of the current image at the warped points
@@ -149,15 +149,6 @@ def region(boxes: np.ndarray, shape: tuple[int, ...], grow: float = 0.5) -> tupl
     return x0, y0, max(x1, x0), max(y1, y0)
 
 
-def _occluded(boxes: np.ndarray, min_overlap: float) -> np.ndarray:
-    """(M,) bool: box i is overlapped, over more than ``min_overlap`` of its area, by another box whose
-    bottom edge is lower in the image (a nearer vehicle, in front of it)."""
-    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
-    covered = intersection(b[:, None, :], b[None, :, :]) > min_overlap * np.maximum(area(b), 1e-9)[:, None]
-    front = b[None, :, 3] > b[:, None, 3]
-    return (covered & front).any(axis=1)
-
-
 class LoomingRegistration:
     """``update(image, ids, boxes, valid) -> (scale, scale_std, centre_x, shift_x)`` per track: each
     vehicle's image scale since its previous frame (:func:`register_scale`), and the column of its patch
@@ -210,7 +201,7 @@ class LoomingRegistration:
             gray = cv2.resize(gray, (gray.shape[1] // k, gray.shape[0] // k), interpolation=cv2.INTER_AREA)
             boxes = boxes / k
         gray = gray.astype(np.float32)
-        usable = np.asarray(valid, dtype=bool) & np.isfinite(boxes).all(axis=1) & ~_occluded(boxes, self.max_overlap)
+        usable = np.asarray(valid, dtype=bool) & np.isfinite(boxes).all(axis=1) & ~occluded(boxes, self.max_overlap)
         todo = [j for j, i in enumerate(ids) if usable[j] and i in self._boxes]
         if todo and self._prev is not None and self._prev.shape == gray.shape:
             x0, y0, x1, y1 = region(np.concatenate([boxes[todo], [self._boxes[ids[j]] for j in todo]]), gray.shape)

@@ -21,7 +21,7 @@ from monorarp.ground_profile import contact_ground
 from monorarp.kalman import kf_predict, kf_update, motion_model
 from monorarp.scale_change import LoomingRegistration, RateWindow, lateral_displacement
 from monorarp.state_geometry import (BORDER_TOL_PX, border_flags, box_distance, contact_line_cut, fragments,
-                                     lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms)
+                                     lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms, occluded)
 from monorarp.types import HorizonReading, ObjectState, Track
 
 
@@ -41,6 +41,8 @@ class StateEstimator:
             width at its distance is taken as cut by the border (:meth:`border_cut_boxes`; 0: never);
             elsewhere it holds a part of a vehicle, whose lateral velocity is then reported with at least
             ``side_cut_lateral_std_mps`` (docs/warning_confirm.md).
+        hidden_share: so is a box lying over more than this share of its area behind a nearer vehicle's
+            box (one whose bottom edge is lower); None: no such rule.
         pixel_std_per_height: box-edge std per px of box height, added to ``pixel_std`` in
             quadrature: a near vehicle's big box has fuzzier edges (its bottom edge flips between
             the bumper and the tyres' contact by several px), and a frame larger than the
@@ -151,7 +153,7 @@ class StateEstimator:
                  fragment_width_ratio: float = 1.5, fragment_bottom_px: float = 3.0,
                  fusion_sigmas: float | None = None, longitudinal_process_std: float | None = None,
                  fusion_pixel_std: float | None = None, registration_top: float = 0.3,
-                 registration_interpolation: str = "linear") -> None:
+                 registration_interpolation: str = "linear", hidden_share: float | None = 0.5) -> None:
         if velocity not in ("kalman", "difference"):
             raise ValueError(f"velocity must be 'kalman' or 'difference', got {velocity!r}")
         if motion not in ("cv", "ca"):
@@ -220,6 +222,9 @@ class StateEstimator:
             if not (np.isfinite(val) and val >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {val}")
         self.min_vehicle_width_m, self.near_border_frac = float(min_vehicle_width_m), float(near_border_frac)
+        if hidden_share is not None and not (np.isfinite(hidden_share) and 0 <= hidden_share < 1):
+            raise ValueError(f"hidden_share must be in [0, 1) or None, got {hidden_share}")
+        self.hidden_share = None if hidden_share is None else float(hidden_share)
         if not (np.isfinite(side_band_frac) and 0 <= side_band_frac < 0.5):
             raise ValueError(f"side_band_frac must be in [0, 0.5), got {side_band_frac}")
         self.side_band_frac = float(side_band_frac)
@@ -501,11 +506,13 @@ class StateEstimator:
             # A box cut by a side border gives its lateral position from the near-edge model (an
             # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
             std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
-            # So does a box too narrow to hold a whole vehicle at its distance: a part of one (a dark car
-            # against a dark truck, read 0.9 m wide at 8.6 m), whose far edge is not the vehicle's.
+            # So does a box that shows a part of a vehicle only: too narrow for a whole one at its distance (a
+            # dark car against a dark truck, read 0.9 m wide at 8.6 m), or mostly behind a nearer vehicle's box.
             with np.errstate(invalid="ignore"):
-                narrow = (boxes[:, 2] - boxes[:, 0]) * np.maximum(out[:, 1], 0.1) < self.camera.fx * self.min_vehicle_width_m
-            std[narrow, 2] = np.maximum(std[narrow, 2], self.side_cut_lateral_std_mps)
+                partial = (boxes[:, 2] - boxes[:, 0]) * np.maximum(out[:, 1], 0.1) < self.camera.fx * self.min_vehicle_width_m
+            if self.hidden_share is not None:
+                partial |= occluded(boxes, self.hidden_share)
+            std[partial, 2] = np.maximum(std[partial, 2], self.side_cut_lateral_std_mps)
             if self.side_band_frac > 0:
                 band = border_flags(self.camera, boxes, self.side_band_frac * self.camera.width)
                 outer = (band[:, 1] & (boxes[:, 0] > self.camera.cx)) | (band[:, 0] & (boxes[:, 2] < self.camera.cx))

@@ -177,3 +177,12 @@ def measure_boxes(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float
     d_x = lateral_from_terms(terms, d_y)
     gone = contact_line_cut(camera, b, d_x, d_y, vehicle_width_m, contact_offset_m, border_tol_px)
     return np.where(gone[:, None], np.nan, np.stack([d_x, d_y], axis=1))
+
+
+def occluded(boxes: np.ndarray, min_overlap: float) -> np.ndarray:
+    """(M,) bool: box i is overlapped, over more than ``min_overlap`` of its area, by another box whose
+    bottom edge is lower in the image (a nearer vehicle, in front of it)."""
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    covered = intersection(b[:, None, :], b[None, :, :]) > min_overlap * np.maximum(area(b), 1e-9)[:, None]
+    front = b[None, :, 3] > b[:, None, 3]
+    return (covered & front).any(axis=1)

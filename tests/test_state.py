@@ -547,6 +547,29 @@ def test_a_box_too_narrow_for_a_vehicle_gets_the_side_cut_lateral_uncertainty(le
     assert settled_v_x_std(level_cam, part, min_vehicle_width_m=0.0) < 1.0
 
 
+def test_a_box_mostly_behind_a_nearer_one_gets_the_side_cut_lateral_uncertainty(level_cam):
+    """A far car two lanes over whose box lies mostly behind a nearer car's (its bottom edge and sides then
+    belong to what is left in view) reports at least side_cut_lateral_std_mps of lateral-velocity
+    uncertainty; alone, or with hidden_share None, it does not; the nearer car never does."""
+    near, far = vehicle_box(level_cam, -3.7, 20.0), vehicle_box(level_cam, -7.4, 38.0)
+    w = far[2] - far[0]
+    behind = (near[0] - 0.3 * w, far[1], near[0] + 0.7 * w, far[3])     # 70 % of it over the nearer box
+
+    def stds(tracks, **kw):
+        est = StateEstimator(level_cam, **kw)
+        for k in range(10):
+            out = est.update(tracks, k / FPS)
+        return {i: s.v_x_std for i, s in out.items()}
+
+    both = stds([Track(1, near), Track(2, behind)])
+    assert both[2] >= 2.0 and both[1] < 1.0
+    assert stds([Track(2, behind)])[2] < 1.5
+    assert stds([Track(1, near), Track(2, behind)], hidden_share=None)[2] < 1.5
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="hidden_share"):
+            StateEstimator(level_cam, hidden_share=bad)
+
+
 def test_border_tolerance_scales_with_the_frame_width():
     cam = CameraModel.from_fov(1920, 1080, 70.0, 1.6, pitch_rad=math.radians(4.0))
     assert StateEstimator(cam).border_tol_px == pytest.approx(12.0)
