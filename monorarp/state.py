@@ -21,7 +21,8 @@ from monorarp.ground_profile import contact_ground
 from monorarp.kalman import kf_predict, kf_update, motion_model
 from monorarp.scale_change import LoomingRegistration, RateWindow, lateral_displacement
 from monorarp.state_geometry import (BORDER_TOL_PX, border_flags, box_distance, contact_line_cut, fragments,
-                                     lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms, occluded)
+                                     lateral_from_terms, lateral_terms, measure_boxes, near_edge_terms, occluded,
+                                     too_narrow)
 from monorarp.types import HorizonReading, ObjectState, Track
 
 
@@ -187,8 +188,11 @@ class StateEstimator:
         for name, val in (("registration_pixel_std", registration_pixel_std), ("registration_window_s", registration_window_s)):
             if not (np.isfinite(val) and val > 0):
                 raise ValueError(f"{name} must be positive, got {val}")
-        self.registration = LoomingRegistration(pixel_std=registration_pixel_std, top=registration_top,
-                                                interpolation=registration_interpolation) if registration else None
+        try:
+            self.registration = LoomingRegistration(pixel_std=registration_pixel_std, top=registration_top,
+                                                    interpolation=registration_interpolation) if registration else None
+        except ValueError as e:    # its settings are registration_* here
+            raise ValueError(f"registration_{e}") from None
         if fusion_sigmas is not None and not (np.isfinite(fusion_sigmas) and fusion_sigmas > 0):
             raise ValueError(f"fusion_sigmas must be positive or None, got {fusion_sigmas}")
         self.fusion_sigmas = None if fusion_sigmas is None else float(fusion_sigmas)
@@ -381,7 +385,7 @@ class StateEstimator:
         b = boxes.copy()
         with np.errstate(invalid="ignore"):
             d_y = box_distance(self.camera, b, self.contact_offset_m, self.ground_clearance_m, self.border_tol_px)
-            narrow = (b[:, 2] - b[:, 0]) < self.camera.fx * self.min_vehicle_width_m / np.maximum(d_y, 0.1)
+            narrow = too_narrow(self.camera, b, d_y, self.min_vehicle_width_m)
             near = self.near_border_frac * self.camera.width
             right = (b[:, 0] > self.camera.cx) & (b[:, 2] >= self.camera.width - 0.5 - near) & narrow
             left = (b[:, 2] < self.camera.cx) & (b[:, 0] <= -0.5 + near) & narrow
@@ -504,19 +508,16 @@ class StateEstimator:
                 d_x_std = depth / self.camera.fx * self.registration.pixel_std * self.registration.reduction(image.shape[1])
                 lat, lat_std = self._lateral_window.update(ids, d_x, d_x_std, t)
             # A box cut by a side border gives its lateral position from the near-edge model (an
-            # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so.
-            std[side_cut, 2] = np.maximum(std[side_cut, 2], self.side_cut_lateral_std_mps)
-            # So does a box that shows a part of a vehicle only: too narrow for a whole one at its distance (a
+            # assumed length): biased, not noisy, which the filter's covariance cannot know. Say so. So
+            # does a box that shows a part of a vehicle only: too narrow for a whole one at its distance (a
             # dark car against a dark truck, read 0.9 m wide at 8.6 m), or mostly behind a nearer vehicle's box.
-            with np.errstate(invalid="ignore"):
-                partial = (boxes[:, 2] - boxes[:, 0]) * np.maximum(out[:, 1], 0.1) < self.camera.fx * self.min_vehicle_width_m
+            biased = side_cut | too_narrow(self.camera, boxes, out[:, 1], self.min_vehicle_width_m)
             if self.hidden_share is not None:
-                partial |= occluded(boxes, self.hidden_share)
-            std[partial, 2] = np.maximum(std[partial, 2], self.side_cut_lateral_std_mps)
+                biased |= occluded(boxes, self.hidden_share)
             if self.side_band_frac > 0:
                 band = border_flags(self.camera, boxes, self.side_band_frac * self.camera.width)
-                outer = (band[:, 1] & (boxes[:, 0] > self.camera.cx)) | (band[:, 0] & (boxes[:, 2] < self.camera.cx))
-                std[outer, 2] = np.maximum(std[outer, 2], self.side_cut_lateral_std_mps)
+                biased |= (band[:, 1] & (boxes[:, 0] > self.camera.cx)) | (band[:, 0] & (boxes[:, 2] < self.camera.cx))
+            std[biased, 2] = np.maximum(std[biased, 2], self.side_cut_lateral_std_mps)
             std[:, 1] = self.distance_std(out[:, 1], std[:, 1], horizon_std_px, side_cut)
             if self._ground_std is not None:
                 std[:, 1] = np.hypot(std[:, 1], self._ground_std)

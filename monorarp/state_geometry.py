@@ -186,3 +186,11 @@ def occluded(boxes: np.ndarray, min_overlap: float) -> np.ndarray:
     covered = intersection(b[:, None, :], b[None, :, :]) > min_overlap * np.maximum(area(b), 1e-9)[:, None]
     front = b[None, :, 3] > b[:, None, 3]
     return (covered & front).any(axis=1)
+
+
+def too_narrow(camera: CameraModel, boxes: np.ndarray, d_y: np.ndarray, width_m: float) -> np.ndarray:
+    """(M,) bool: box narrower (px) than ``width_m`` would be at its distance ``d_y`` (m; 0.1 m at least);
+    False where ``d_y`` is NaN."""
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    with np.errstate(invalid="ignore"):
+        return (b[:, 2] - b[:, 0]) * np.maximum(d_y, 0.1) < camera.fx * width_m
