@@ -105,15 +105,19 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
     otherwise). It is the "what if it brakes / turns in" question of worst-case risk measures (the
     reachable sets of Lefevre et al. 2014): a close follower scores before its lead brakes, a slower
     car beside the ego before it turns in, which constant-velocity 1/TTC cannot. Defaults 4 m/s^2
-    (firm braking, 0.4 g) and 1 m/s (a lane change's lateral speed); docs/scorecard.md says how these
-    and the two below were chosen (scenarios/fcw/risk_tuning.yaml) and what they score.
+    (firm braking, 0.4 g) and 1 m/s (a lane change's lateral speed); docs/manoeuvre_risk.md says how these
+    and the settings below were chosen (scenarios/fcw/risk_tuning.yaml) and what they score.
 
     **Closing speed**: the filter's (``-v_y``) mixed with the looming cue's (``expansion_rate x d_y``,
     the box's growth rate: :mod:`monorarp.expansion`) as ``(1 - looming_weight) x filter + looming_weight
     x looming`` (0.5); the filter's alone where the state has no expansion rate, or one whose one-sigma
     is over ``looming_max_std`` (0.5 /s: a rate only predicted, as for a box cut by a side border,
     whose constant-closing-speed prediction grows without bound, or one just started). The range
-    filter lags a lead that starts braking; the mix reacts sooner.
+    filter lags a lead that starts braking; the mix reacts sooner. Where the registered patch's rate
+    (``ObjectState.registered_rate``, :mod:`monorarp.scale_change`, at most ``registered_max_std`` 0.05 /s
+    one-sigma) is known, that mix is mixed again with its closing speed ``registered_rate x d_y`` at
+    ``registered_weight`` (0.5): filter, box growth and patch weigh 1 : 1 : 2. The patch's rate is the
+    most precise of the three from frame to frame (docs/manoeuvre_risk.md, fourteenth round); 0 turns it off.
 
     **Peak hold**: the scene risk reported at time ``t`` is the highest of the frames in
     ``[t - hold_s, t]`` (0.45 s; 0 turns it off; frames without a time are not held). A vehicle whose
@@ -125,6 +129,7 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
 
     def __init__(self, brake_mps2: float = 4.0, lateral_mps: float = 1.0, hold_s: float = 0.45,
                  looming_weight: float = 0.5, looming_max_std: float | None = 0.5,
+                 registered_weight: float = 0.5, registered_max_std: float | None = 0.05,
                  camera: CameraModel | None = None, **kw) -> None:
         """``kw``: the sizes, offsets, horizon and floor of :class:`TTCRiskEstimator`."""
         super().__init__(camera=camera, **kw)
@@ -138,6 +143,12 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
         if looming_max_std is not None and not looming_max_std > 0:
             raise ValueError(f"looming_max_std must be > 0 or None, got {looming_max_std}")
         self.looming_max_std = None if looming_max_std is None else float(looming_max_std)
+        if not 0 <= registered_weight <= 1:
+            raise ValueError(f"registered_weight must be in [0, 1], got {registered_weight}")
+        if registered_max_std is not None and not registered_max_std > 0:
+            raise ValueError(f"registered_max_std must be > 0 or None, got {registered_max_std}")
+        self.registered_weight = float(registered_weight)
+        self.registered_max_std = None if registered_max_std is None else float(registered_max_std)
         self._recent: deque[tuple[float, float]] = deque()    # (t s, risk 1/s) of the frames in the hold window
 
     def reset(self) -> None:
@@ -174,11 +185,18 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
 
     def closing_velocity(self, s: ObjectState) -> float:
         """Relative longitudinal velocity ``v_y`` (m/s, negative = closing) the hypotheses start from: the
-        filter's mixed with the looming cue's ``-expansion_rate x d_y`` (class docstring); a rate without a
-        one-sigma counts as within ``looming_max_std``."""
-        if s.expansion_rate is None or self.looming_weight == 0:
-            return s.v_y
-        if self.looming_max_std is not None and s.expansion_rate_std is not None \
-                and not s.expansion_rate_std <= self.looming_max_std:
-            return s.v_y
-        return (1 - self.looming_weight) * s.v_y - self.looming_weight * s.expansion_rate * s.d_y
+        filter's mixed with the looming cue's ``-expansion_rate x d_y``, then with the registered patch's
+        ``-registered_rate x d_y`` (class docstring); a rate without a one-sigma counts as within its bound."""
+        v_y = s.v_y
+        if _trusted(s.expansion_rate, s.expansion_rate_std, self.looming_max_std) and self.looming_weight > 0:
+            v_y = (1 - self.looming_weight) * v_y - self.looming_weight * s.expansion_rate * s.d_y
+        if _trusted(s.registered_rate, s.registered_rate_std, self.registered_max_std) and self.registered_weight > 0:
+            v_y = (1 - self.registered_weight) * v_y - self.registered_weight * s.registered_rate * s.d_y
+        return v_y
+
+
+def _trusted(rate: float | None, rate_std: float | None, max_std: float | None) -> bool:
+    """A looming rate (1/s) is known, and its one-sigma (none: trusted) within ``max_std`` (None: any)."""
+    if rate is None:
+        return False
+    return max_std is None or rate_std is None or bool(rate_std <= max_std)

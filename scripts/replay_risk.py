@@ -4,11 +4,11 @@ How ``manoeuvre_ttc``'s defaults (``monorarp/risk.py``, :class:`ManoeuvreTTCRisk
 checked: ``monorarp scorecard --suite risk --out DIR`` writes every run's per-object states
 (``per_object.csv``); this script rebuilds each frame's states from them (the estimates, or with
 ``--truth`` the true states), scores :class:`ManoeuvreTTCRisk` for every brake x lateral x hold x looming
-(x looming sigma bound, ``--max-std``) setting of the grid, and prints the pooled AUROC / AP per horizon beside the estimators the runs scored themselves,
+(x looming sigma bound, ``--max-std``, x registered patch weight, ``--registered``) setting of the grid, and prints the pooled AUROC / AP per horizon beside the estimators the runs scored themselves,
 with the scorecard's own labels (:func:`harness.scorecard.score.pooled_risk`).
 
     python scripts/replay_risk.py DIR/runs [--brake 4 ...] [--lateral 1 ...] [--hold 0.45 ...] [--looming 0.5 ...]
-        [--max-std 0.5|none ...] [--truth]
+        [--max-std 0.5|none ...] [--registered 0.5 ...] [--truth]
         [--only SUFFIX | --exclude SUFFIX]        # e.g. --only __t0, --exclude __t0: the held-out runs
 
 Needs the harness.
@@ -43,18 +43,21 @@ def frame_states(run_dir: Path, n_frames: int, truth: bool = False) -> list[dict
                 continue
             k, i = int(row["frame"]), int(row[keys[0]])
             if 0 <= k < n_frames:
-                rate, rate_std = (None if truth or row.get(c) in ("", None) else float(row[c])
-                                  for c in ("expansion_rate", "expansion_rate_std"))
+                rate, rate_std, reg, reg_std = (
+                    None if truth or row.get(c) in ("", None) else float(row[c])
+                    for c in ("expansion_rate", "expansion_rate_std", "registered_rate", "registered_rate_std"))
                 states[k][i] = ObjectState(i, *(float(row[c]) for c in keys[1:]), expansion_rate=rate,
-                                           expansion_rate_std=rate_std)
+                                           expansion_rate_std=rate_std, registered_rate=reg,
+                                           registered_rate_std=reg_std)
     return states
 
 
 def replay(runs_dir: Path, settings: list[tuple], truth: bool = False,
            only: str | None = None, exclude: str | None = None) -> list[dict[str, np.ndarray]]:
     """Each run's per-frame arrays (:func:`harness.scorecard.run._frame_arrays`) plus one column per setting
-    ``(brake, lateral, hold, looming[, max_std])``, replayed on its states: ``manoeuvre_b{brake}_l{lateral}_h{hold}_w{looming}``,
-    with ``_s{max_std}`` (``_snone``) where the setting gives the looming sigma bound (else the estimator's default)."""
+    ``(brake, lateral, hold, looming[, max_std[, registered]])``, replayed on its states:
+    ``manoeuvre_b{brake}_l{lateral}_h{hold}_w{looming}``, with ``_s{max_std}`` (``_snone``) where the setting gives
+    the looming sigma bound and ``_r{registered}`` where it gives the registered patch's weight (else the defaults)."""
     runs = []
     for d in sorted(p for p in runs_dir.iterdir() if p.is_dir()):
         if (only and not d.name.endswith(only)) or (exclude and d.name.endswith(exclude)):
@@ -64,13 +67,15 @@ def replay(runs_dir: Path, settings: list[tuple], truth: bool = False,
             continue
         camera = CameraModel.from_dict(json.loads((d / "camera.json").read_text()))
         states = frame_states(d, len(arrays["t"]), truth)
-        for brake, lateral, hold, looming, *bound in settings:
-            kw = {"looming_max_std": bound[0]} if bound else {}
+        for brake, lateral, hold, looming, *rest in settings:
+            kw = dict(zip(("looming_max_std", "registered_weight"), rest))
             stage = ManoeuvreTTCRisk(brake_mps2=brake, lateral_mps=lateral, hold_s=hold, looming_weight=looming,
                                      camera=camera, **kw)
             name = f"manoeuvre_b{brake:g}_l{lateral:g}_h{hold:g}_w{looming:g}"
-            if bound:
-                name += "_snone" if bound[0] is None else f"_s{bound[0]:g}"
+            if rest:
+                name += "_snone" if rest[0] is None else f"_s{rest[0]:g}"
+            if len(rest) > 1:
+                name += f"_r{rest[1]:g}"
             arrays[name] = np.array(
                 [stage.assess(s, t).risk for s, t in zip(states, arrays["t"])])
         runs.append(arrays)
@@ -92,6 +97,8 @@ def main() -> None:
                     help="weight of the looming cue's closing speed, 0-1 (default 0.5)")
     ap.add_argument("--max-std", type=_bound, nargs="+", default=[0.5],
                     help="the looming rate's largest one-sigma the mix uses, 1/s, or none (default 0.5)")
+    ap.add_argument("--registered", type=float, nargs="+", default=[0.5],
+                    help="weight of the registered patch's closing speed, 0-1 (default 0.5)")
     ap.add_argument("--truth", action="store_true", help="replay on the true states instead of the estimates")
     split = ap.add_mutually_exclusive_group()
     split.add_argument("--only", metavar="SUFFIX", help="only the runs whose name ends so")
@@ -99,8 +106,8 @@ def main() -> None:
     args = ap.parse_args()
     if not args.runs_dir.is_dir():
         raise SystemExit(f"replay_risk: {args.runs_dir}: no such folder")
-    settings = [(b, lat, h, w, m) for b in args.brake for lat in args.lateral for h in args.hold for w in args.looming
-                for m in args.max_std]
+    settings = [(b, lat, h, w, m, r) for b in args.brake for lat in args.lateral for h in args.hold
+                for w in args.looming for m in args.max_std for r in args.registered]
     try:
         runs = replay(args.runs_dir, settings, args.truth, args.only, args.exclude)
     except (OSError, ValueError, KeyError, TypeError) as e:   # a run folder without its files, a bad setting
@@ -111,7 +118,7 @@ def main() -> None:
     for horizon, per in pooled_risk(runs, HORIZONS_S).items():
         print(horizon)
         for name, r in sorted(per.items()):
-            print(f"  {name:24s} AUROC {r['auroc']:.3f}  AP {r['ap']:.3f}  ({r['positives']}/{r['frames']} positive)")
+            print(f"  {name:36s} AUROC {r['auroc']:.3f}  AP {r['ap']:.3f}  ({r['positives']}/{r['frames']} positive)")
 
 
 if __name__ == "__main__":

@@ -65,16 +65,33 @@ def test_the_replayed_risk_is_the_estimator_on_the_runs_states(tmp_path):
     np.testing.assert_allclose(true_run["manoeuvre_b4_l1_h0.6_w0.5"], [stage.assess(s, t).risk for s, t in zip(truth, times)])
 
 
+def test_the_registered_patchs_rate_is_read_and_replayed(tmp_path):
+    d = _run(tmp_path / "runs", "risk__Brake__t0", closing=4.0)
+    lines = (d / "per_object.csv").read_text().splitlines()
+    reg = [lines[0] + ",registered_rate,registered_rate_std"]
+    for line in lines[1:]:      # the patch reads 5 m/s of closing (its rate at the lead's distance), sigma 0.01 /s
+        f = line.split(",")
+        reg.append(line + (f",{5.0 / float(f[4])},0.01" if f[3] else ",,"))
+    (d / "per_object.csv").write_text("\n".join(reg) + "\n")
+    est = frame_states(d, 20)
+    assert est[3][7].registered_rate == pytest.approx(5.0 / 18.8) and est[3][7].registered_rate_std == 0.01
+    (run,) = replay(tmp_path / "runs", [(0.0, 0.0, 0.0, 0.5, 0.5, 0.0), (0.0, 0.0, 0.0, 0.5, 0.5, 0.5)])
+    gap = 20.0 - 0.4 * np.arange(20) - (4.5 / 2 - 0.5)
+    mixed = np.where(np.arange(20) < 3, 4.4, 4.2)
+    np.testing.assert_allclose(run["manoeuvre_b0_l0_h0_w0.5_s0.5_r0"], mixed / gap)
+    np.testing.assert_allclose(run["manoeuvre_b0_l0_h0_w0.5_s0.5_r0.5"], (mixed + 5.0) / 2 / gap)
+
+
 def test_runs_are_split_by_name_and_scored_with_the_scorecards_labels(tmp_path):
     for name, closing in (("risk__Brake__t0", 4.0), ("risk__Brake__t1", 6.0), ("risk__Nominal__seed3", 0.0)):
         _run(tmp_path / "runs", name, closing)
     assert len(replay(tmp_path / "runs", [(4.0, 1.0, 0.6, 0.5)], only="__t0")) == 1
     assert len(replay(tmp_path / "runs", [(4.0, 1.0, 0.6, 0.5)], exclude="__t0")) == 2
     out = subprocess.run([sys.executable, "scripts/replay_risk.py", str(tmp_path / "runs"), "--brake", "4", "6",
-                          "--max-std", "0.5", "none"],
+                          "--max-std", "0.5", "none", "--registered", "0", "0.5"],
                          capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1], check=True).stdout
     assert out.startswith("3 runs, estimated states") and "manoeuvre_b6_l1_h0.45_w0.5_s0.5" in out and "2s" in out
-    assert "manoeuvre_b4_l1_h0.45_w0.5_snone" in out
+    assert "manoeuvre_b4_l1_h0.45_w0.5_snone_r0.5" in out and "manoeuvre_b4_l1_h0.45_w0.5_s0.5_r0 " in out
 
 
 def test_a_missing_folder_is_one_line_and_exit_1(tmp_path):

@@ -189,9 +189,29 @@ def test_manoeuvre_risk_uses_the_looming_rate_only_where_its_sigma_is_within_the
     assert stage.assess({1: state(0.6)}).ttc[1] > stage.assess({1: state(0.4)}).ttc[1]
 
 
+def test_manoeuvre_risk_mixes_in_the_registered_patchs_closing_speed():
+    # filter 4 m/s, box growth 0.3 /s at 20 m (6 m/s): 5 m/s; the patch 0.4 /s (8 m/s), weight 0.5: 6.5 m/s
+    def state(reg_std, expansion=0.3):
+        return ObjectState(1, 0.0, 20.0, 0.0, -4.0, expansion_rate=expansion, registered_rate=0.4,
+                           registered_rate_std=reg_std)
+    stage = ManoeuvreTTCRisk(brake_mps2=0.0, lateral_mps=0.0)                 # weight 0.5, bound 0.05 /s
+    assert stage.closing_velocity(state(0.01)) == pytest.approx(-6.5)
+    assert stage.closing_velocity(state(0.01, expansion=None)) == pytest.approx(-6.0)   # filter and patch
+    assert stage.closing_velocity(state(0.06)) == pytest.approx(-5.0)          # over the bound: the box mix alone
+    assert stage.closing_velocity(state(float("nan"))) == pytest.approx(-5.0)
+    assert stage.closing_velocity(state(None)) == pytest.approx(-6.5)          # no sigma: trusted
+    assert ManoeuvreTTCRisk(registered_max_std=None).closing_velocity(state(1.0)) == pytest.approx(-6.5)
+    assert ManoeuvreTTCRisk(registered_weight=0.0).closing_velocity(state(0.01)) == pytest.approx(-5.0)
+    assert ManoeuvreTTCRisk(registered_weight=1.0).closing_velocity(state(0.01)) == pytest.approx(-8.0)
+    cv = TTCRiskEstimator().assess({1: ObjectState(1, 0.0, 20.0, 0.0, -6.5)}).ttc[1]
+    assert stage.assess({1: state(0.01)}).ttc[1] == pytest.approx(cv)
+
+
 @pytest.mark.parametrize("kw", [{"brake_mps2": -1.0}, {"lateral_mps": float("nan")}, {"hold_s": -0.1},
                                 {"looming_weight": 1.5}, {"looming_weight": float("nan")},
-                                {"looming_max_std": 0.0}, {"looming_max_std": float("nan")}])
+                                {"looming_max_std": 0.0}, {"looming_max_std": float("nan")},
+                                {"registered_weight": -0.1}, {"registered_weight": float("nan")},
+                                {"registered_max_std": 0.0}, {"registered_max_std": float("nan")}])
 def test_manoeuvre_ttc_rejects_bad_settings(kw):
     with pytest.raises(ValueError, match=next(iter(kw))):
         create("risk", "manoeuvre_ttc", **kw)
