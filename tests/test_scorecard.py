@@ -169,3 +169,52 @@ def test_early_warning_that_stays_on_into_the_conflict_is_timed_when_the_collisi
               for k in range(20)]
     m = warning_metrics(*zip(*frames), threshold_s=3.0)
     assert m["first_warning_ttc_s"] is None and m["first_warning_early"] is False and m["false_alarms"] == 1
+
+
+def _braking_frames(accel, n=8, active=range(0, 4), v_lat=0.0):
+    """A lead 12 m ahead (gap) closing at 2 m/s and at ``accel`` m/s^2 more, 10 fps; the warning on in ``active``."""
+    frames = []
+    for k in range(n):
+        t = k / 10
+        v, gap = -2.0 + accel * t, 12.0 - 2.0 * t + accel * t * t / 2
+        truth = FrameTruth.from_json({"frame": k, "t": t, "ego": {"speed": 20.0},
+                                      "objects": [{"id": 5, "box": [100, 100, 140, 130], "visibility": 1.0,
+                                                   "ttc": gap / -v, "d_lat": 0.0, "d_long": gap + 2.0,
+                                                   "v_lat": v_lat, "v_long": v, "lane_rel": 0}]})
+        on = k in active
+        res = FrameResult(index=k, t=t, detections=[], tracks=[Track(2, (100, 100, 140, 130))],
+                          states={2: ObjectState(2, 0.0, gap + 2.0, 0.0, v)}, risk=RiskEstimate(0.0),
+                          warning=WarningState(active=on, track_id=2 if on else None, ttc=2.5 if on else None,
+                                               episode=0 if on else None))
+        frames.append((truth, res))
+    return zip(*frames)
+
+
+def test_a_false_alarm_for_a_truly_braking_lead_gets_its_braking_ttc():
+    # gap 12 m closing at 2 m/s and braking at 3 m/s^2 relative: its constant-velocity TTC stays 3.9-6 s in the
+    # episode (a false alarm at 3 s), but held, the braking meets the ego at the root of 12 = 2 t + 1.5 t^2
+    truths, results = _braking_frames(-3.0)
+    m = warning_metrics(truths, results, threshold_s=3.0)
+    assert m["false_alarms"] == 1 and m["braking_false_alarms"] == 1
+    (ep,) = m["episode_list"]
+    contact = max(np.roots([1.5, 2.0, -12.0]).real)
+    assert ep["true_braking_ttc_s"] == pytest.approx(contact - 0.3)       # lowest at the episode's last frame
+    assert ep["true_accel_mps2"] == pytest.approx(-3.0) and "braking held (-3.0 m/s^2)" in ep["why"]
+    # a steady lead: held, its braking TTC is its constant-velocity TTC, 12 / 2 - 0.3 = 5.7 s; no braking alarm
+    m = warning_metrics(*_braking_frames(0.0), threshold_s=3.0)
+    assert m["braking_false_alarms"] == 0 and m["episode_list"][0]["true_braking_ttc_s"] == pytest.approx(5.7)
+    # moving sideways: its course is not the gap's alone, so none is given
+    m = warning_metrics(*_braking_frames(-3.0, v_lat=1.0), threshold_s=3.0)
+    assert m["episode_list"][0]["true_braking_ttc_s"] is None and m["braking_false_alarms"] == 0
+
+
+def test_the_scorecard_says_how_many_false_alarms_were_for_a_braking_vehicle():
+    from harness.scorecard.report import console_table
+    from harness.scorecard.run import _braking
+
+    assert _braking({"true_braking_ttc_s": 2.2}, 3.0) and not _braking({"true_braking_ttc_s": 3.2}, 3.0)
+    assert not _braking({"true_braking_ttc_s": None}, 3.0) and not _braking({}, 3.0)
+    fa = {"episodes": 3, "hours": 2.0, "km": 129.0, "per_hour": 1.5, "runs": 360, "braking": 2,
+          "list": [{"run": "r", "t_s": 2.0, "why": "w", "true_braking_ttc_s": 2.4}]}
+    text = console_table({"tests": [], "false_alarms": fa, "risk": None, "summary": {}, "failed_runs": []})
+    assert "= 1.5 per hour (2 of them for a vehicle truly braking" in text

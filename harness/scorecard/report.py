@@ -33,6 +33,15 @@ def tests_rows(card: Mapping) -> tuple[list[str], list[list], list[str]]:
     return header, rows, classes
 
 
+def _braking_note(fa: Mapping) -> str:
+    """``" (N of them: ...)"`` for the false alarms whose vehicle truly braked hard enough (docs/metrics.md)."""
+    n = fa.get("braking")
+    if not n:
+        return ""
+    return (f" ({n} of them for a vehicle truly braking so hard that, had it kept braking, its TTC fell under "
+            f"the threshold)")
+
+
 def console_table(card: Mapping) -> str:
     """Plain-text scorecard for the terminal."""
     header, rows, _ = tests_rows(card)
@@ -44,7 +53,7 @@ def console_table(card: Mapping) -> str:
     fa = card["false_alarms"]
     if fa["runs"]:
         lines.append(f"false alarms: {fa['episodes']} in {fa['hours']:.2f} h / {fa['km']:.1f} km of nominal "
-                     f"traffic ({fa['runs']} runs) = {_fmt(fa['per_hour'])} per hour")
+                     f"traffic ({fa['runs']} runs) = {_fmt(fa['per_hour'])} per hour{_braking_note(fa)}")
         for e in fa["list"][:20]:
             lines.append(f"  {e['run']} t={e['t_s']:.2f}s: {e['why']}")
     if card.get("risk"):
@@ -131,11 +140,11 @@ def render_scorecard(card: Mapping, roc_curves: Mapping | None = None, standalon
     if fa["runs"]:
         parts.append(f"<h3>False alarms in nominal traffic</h3><p><b>{fa['episodes']}</b> warning episodes without "
                      f"a conflict in {fa['hours']:.2f} h ({fa['km']:.1f} km, {fa['runs']} runs): "
-                     f"<b>{_fmt(fa['per_hour'])}</b> per hour.</p>")
+                     f"<b>{_fmt(fa['per_hour'])}</b> per hour{html.escape(_braking_note(fa))}.</p>")
         if fa["list"]:
-            parts.append(_table(["run", "t (s)", "track", "vehicle", "why"],
-                                [[x["run"], x["t_s"], x["track_id"], x["gt_id"], x["why"]] for x in fa["list"]],
-                                left=5))
+            parts.append(_table(["run", "t (s)", "track", "vehicle", "braking held: true TTC (s)", "why"],
+                                [[x["run"], x["t_s"], x["track_id"], x["gt_id"], x.get("true_braking_ttc_s"), x["why"]]
+                                 for x in fa["list"]], left=6))
     if card.get("risk"):
         rows = [[h, name, v["auroc"], v["ap"], v["positives"], v["frames"], v["runs"]]
                 for h, per in card["risk"].items() for name, v in per.items()]

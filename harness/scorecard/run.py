@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import csv
 import json
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -213,7 +213,9 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
             exposure_s += w["exposure_s"]
             exposure_km += w["exposure_km"]
             fa_episodes += [{"run": task.id, "t_s": e["onset_t"], "end_t_s": e["end_t"], "track_id": e["track_id"],
-                             "gt_id": e["gt_id"], "why": e["why"]} for e in w["episode_list"] if e["false_alarm"]]
+                             "gt_id": e["gt_id"], "true_braking_ttc_s": e.get("true_braking_ttc_s"),
+                             "braking": _braking(e, w["threshold_s"]), "why": e["why"]}
+                            for e in w["episode_list"] if e["false_alarm"]]
         if trial.suite == "risk":
             arrays = _frame_arrays(runs_dir / task.id)
             if arrays is not None:
@@ -248,12 +250,19 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
         "false_alarms": {"episodes": len(fa_episodes), "hours": hours, "km": exposure_km,
                          "per_hour": len(fa_episodes) / hours if hours > 0 else None,
                          "per_100km": 100 * len(fa_episodes) / exposure_km if exposure_km > 0 else None,
-                         "runs": sum(t.kind == "nominal" for t in trials), "list": fa_episodes},
+                         "runs": sum(t.kind == "nominal" for t in trials),
+                         "braking": sum(e["braking"] for e in fa_episodes), "list": fa_episodes},
         "risk": score.pooled_risk(risk_runs) if risk_runs else None,
         "failed_runs": failed,
     }
     from monorarp.io import to_jsonable
     return to_jsonable(card), risk_runs
+
+
+def _braking(episode: Mapping, threshold_s: float) -> bool:
+    """A false alarm for a vehicle truly braking so hard that, had it kept braking, its TTC fell under the threshold."""
+    ttc = episode.get("true_braking_ttc_s")
+    return ttc is not None and ttc < threshold_s
 
 
 def summary(tests: Sequence[dict]) -> dict:

@@ -1,7 +1,8 @@
 """Forward-collision warnings scored as episodes against the truth (``warning.*`` of ``metrics.json``).
 
 The pipeline decides (:mod:`monorarp.warning`); the harness only scores: episodes, conflict
-frames, false alarms, first-warning TTC (s), lead time (s) and exposure (s, km). Their
+frames, false alarms, first-warning TTC (s), lead time (s) and exposure (s, km); and, for a
+diagnosis of each episode, the warned vehicle's true TTC had it kept its braking (s). Their
 definitions: docs/metrics.md (warning episodes).
 """
 
@@ -14,7 +15,11 @@ import numpy as np
 
 from harness.scoring.match import as_boxes, match_boxes
 from harness.truth import FrameTruth, ObjectTruth
+from monorarp.ttc import closing_time
 from monorarp.types import FrameResult
+
+BRAKING_DIFF_S = 0.1        # the truth's acceleration: central difference of its speeds over +- this (s)
+BRAKING_MAX_LATERAL_MPS = 0.5   # the braking TTC is asked only of a vehicle keeping its lane (|v_lat|, m/s)
 
 
 @dataclass
@@ -28,6 +33,8 @@ class Episode:
     gt_id: int | None = None       # the truth vehicle that track matches at onset
     true_ttc_at_onset_s: float | None = None
     true_ttc_at_conflict_s: float | None = None   # onset, or the first collision-course frame of an early episode
+    true_braking_ttc_s: float | None = None   # lowest in the episode of the warned vehicle's braking TTC (braking_ttc)
+    true_accel_mps2: float | None = None      # its true relative longitudinal acceleration then (m/s^2)
     conflict: bool = False         # a conflict frame lies within the episode
     false_alarm: bool = False
     why: str = ""
@@ -79,6 +86,50 @@ def _frame_ttc(truth: FrameTruth, result: FrameResult, track_id: int | None,
     return None, truth.min_ttc
 
 
+def true_accelerations(truths: Sequence[FrameTruth], k: int, diff_s: float = BRAKING_DIFF_S) -> dict[int, float]:
+    """Per vehicle id in frame ``k``, its true relative longitudinal acceleration (m/s^2, negative: closing
+    faster): the central difference of ``v_long`` over the frames ``diff_s`` before and after (one-sided at
+    the run's ends, or where the vehicle is not in one of them)."""
+    times = [t.t for t in truths[max(0, k - 3):k + 4]]
+    if not truths[k].objects or len(times) < 2:
+        return {}
+    dt = float(np.median(np.diff(times)))
+    m = max(1, int(round(diff_s / dt))) if dt > 0 else 1
+    lo, hi = truths[max(0, k - m)], truths[min(len(truths) - 1, k + m)]
+    v_lo = {o.id: o.v_long for o in lo.objects}
+    v_hi = {o.id: o.v_long for o in hi.objects}
+    out = {}
+    for o in truths[k].objects:
+        a, b = v_lo.get(o.id), v_hi.get(o.id)
+        (t0, v0), (t1, v1) = ((lo.t, a) if a is not None else (truths[k].t, o.v_long),
+                              (hi.t, b) if b is not None else (truths[k].t, o.v_long))
+        if o.v_long is not None and v0 is not None and v1 is not None and t1 > t0:
+            out[o.id] = (v1 - v0) / (t1 - t0)
+    return out
+
+
+def braking_ttc(obj: ObjectTruth, accel_mps2: float) -> float | None:
+    """The true TTC (s) of a vehicle on a collision course (``obj.ttc``) had its relative longitudinal
+    acceleration ``accel_mps2`` been held: the gap its constant-velocity TTC implies, ``ttc x -v_long``, closed
+    at ``v_long`` and that acceleration (:func:`monorarp.ttc.closing_time`). None for a vehicle on no course, or
+    moving sideways (|v_lat| over 0.5 m/s: its course is not the gap's alone)."""
+    if obj.ttc is None or obj.v_long is None or obj.v_long >= 0 or abs(obj.v_lat or 0.0) > BRAKING_MAX_LATERAL_MPS:
+        return None
+    return float(closing_time(obj.ttc * -obj.v_long, obj.v_long, accel_mps2))
+
+
+def _episode_braking(truths: Sequence[FrameTruth], k0: int, k1: int, gt_id: int) -> tuple[float | None, float | None]:
+    """(lowest braking TTC, the acceleration at that frame) of vehicle ``gt_id`` over frames ``k0..k1``."""
+    best: tuple[float | None, float | None] = (None, None)
+    for k in range(k0, k1 + 1):
+        obj = next((o for o in truths[k].objects if o.id == gt_id), None)
+        a = true_accelerations(truths, k).get(gt_id) if obj is not None else None
+        ttc = None if a is None else braking_ttc(obj, a)
+        if ttc is not None and (best[0] is None or ttc < best[0]):
+            best = (ttc, a)
+    return best
+
+
 def _why(ep: Episode, truth: FrameTruth, result: FrameResult, obj: ObjectTruth | None) -> str:
     """One line saying what the pipeline saw and what was true at the onset of a false alarm."""
     st = result.states.get(ep.track_id) if ep.track_id is not None else None
@@ -88,9 +139,11 @@ def _why(ep: Episode, truth: FrameTruth, result: FrameResult, obj: ObjectTruth |
     if obj is None:
         return f"track {ep.track_id} matches no vehicle (a false or mislocated track); {est}"
     ttc = obj.ttc
+    braking = "" if ep.true_braking_ttc_s is None else (
+        f"; braking held ({ep.true_accel_mps2:+.1f} m/s^2): true TTC {ep.true_braking_ttc_s:.2f} s at the lowest")
     return (f"track {ep.track_id} is vehicle {obj.id} (lane {obj.lane_rel or 0:+d}): {est}; "
             f"true d_lat {obj.d_lat:+.1f} m, d_long {obj.d_long:.1f} m, v_lat {obj.v_lat:+.1f} m/s, "
-            f"v_long {obj.v_long:+.1f} m/s, true TTC {'none' if ttc is None else f'{ttc:.2f} s'}")
+            f"v_long {obj.v_long:+.1f} m/s, true TTC {'none' if ttc is None else f'{ttc:.2f} s'}{braking}")
 
 
 def warning_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult], threshold_s: float,
@@ -106,6 +159,7 @@ def warning_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult]
         obj, ep.true_ttc_at_onset_s = _frame_ttc(truths[k0], results[k0], ep.track_id, min_iou)
         if obj is not None:
             ep.gt_id = obj.id
+            ep.true_braking_ttc_s, ep.true_accel_mps2 = _episode_braking(truths, k0, k1, obj.id)
         ep.true_ttc_at_conflict_s = ep.true_ttc_at_onset_s
         for k in range(k0 + 1, k1 + 1) if ep.true_ttc_at_onset_s is None else ():
             _, ttc_k = _frame_ttc(truths[k], results[k], results[k].warning.track_id, min_iou)
@@ -125,6 +179,8 @@ def warning_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult]
         "threshold_s": float(threshold_s),
         "episodes": len(eps),
         "false_alarms": sum(e.false_alarm for e in eps),
+        "braking_false_alarms": sum(e.false_alarm and e.true_braking_ttc_s is not None
+                                    and e.true_braking_ttc_s < threshold_s for e in eps),
         "first_warning_t_s": None if first is None else first.onset_t,
         "first_warning_ttc_s": None if first is None else first.true_ttc_at_conflict_s,
         "first_warning_early": None if first is None else (first.true_ttc_at_onset_s is None
