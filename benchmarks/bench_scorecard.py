@@ -44,7 +44,8 @@ def report(card: dict, seconds: float) -> list[tuple[str, str, str]]:
     fa = card["false_alarms"]
     if fa["runs"]:
         rows.append(("false alarms per hour (nominal)", "<= 1 over >= 2 h",
-                     f"{fa['episodes']} in {fa['hours']:.2f} h = {_fmt(fa['per_hour'], '.1f')}/h"))
+                     f"{fa['episodes']} in {fa['hours']:.2f} h = {_fmt(fa['per_hour'], '.1f')}/h"
+                     + (f" ({fa['braking']} for a truly braking vehicle)" if fa.get("braking") else "")))
     risk = card.get("risk")
     if risk:
         for name, r in (risk.get("2s") or {}).items():
