@@ -210,10 +210,11 @@ def test_a_false_alarm_for_a_truly_braking_lead_gets_its_braking_ttc():
 
 def test_the_scorecard_says_how_many_false_alarms_were_for_a_braking_vehicle():
     from harness.scorecard.report import console_table
-    from harness.scorecard.run import _braking
+    from harness.scoring.warnings import braking_alarm as _braking
 
-    assert _braking({"true_braking_ttc_s": 2.2}, 3.0) and not _braking({"true_braking_ttc_s": 3.2}, 3.0)
-    assert not _braking({"true_braking_ttc_s": None}, 3.0) and not _braking({}, 3.0)
+    fa_ep = {"false_alarm": True}
+    assert _braking(fa_ep | {"true_braking_ttc_s": 2.2}, 3.0) and not _braking(fa_ep | {"true_braking_ttc_s": 3.2}, 3.0)
+    assert not _braking(fa_ep | {"true_braking_ttc_s": None}, 3.0) and not _braking(fa_ep, 3.0)
     fa = {"episodes": 3, "hours": 2.0, "km": 129.0, "per_hour": 1.5, "runs": 360, "braking": 2,
           "list": [{"run": "r", "t_s": 2.0, "why": "w", "true_braking_ttc_s": 2.4}]}
     text = console_table({"tests": [], "false_alarms": fa, "risk": None, "summary": {}, "failed_runs": []})

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import csv
 import json
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,6 +25,7 @@ import numpy as np
 from harness.scenario import ScenarioError, parse_scenario
 from harness.scorecard import score
 from harness.scorecard.protocols import ProtocolError, Trial, expand_protocol, load_protocol
+from harness.scoring.warnings import braking_alarm
 from harness.sweep.executors import Executor, make_executor
 from harness.sweep.expand import RunTask, _inject_seeds, sanitize
 from harness.sweep.orchestrate import clean_leftovers, finished, prepare_out_dir
@@ -214,7 +215,7 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
             exposure_km += w["exposure_km"]
             fa_episodes += [{"run": task.id, "t_s": e["onset_t"], "end_t_s": e["end_t"], "track_id": e["track_id"],
                              "gt_id": e["gt_id"], "true_braking_ttc_s": e.get("true_braking_ttc_s"),
-                             "braking": _braking(e, w["threshold_s"]), "why": e["why"]}
+                             "braking": braking_alarm(e, w["threshold_s"]), "why": e["why"]}
                             for e in w["episode_list"] if e["false_alarm"]]
         if trial.suite == "risk":
             arrays = _frame_arrays(runs_dir / task.id)
@@ -257,12 +258,6 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
     }
     from monorarp.io import to_jsonable
     return to_jsonable(card), risk_runs
-
-
-def _braking(episode: Mapping, threshold_s: float) -> bool:
-    """A false alarm for a vehicle truly braking so hard that, had it kept braking, its TTC fell under the threshold."""
-    ttc = episode.get("true_braking_ttc_s")
-    return ttc is not None and ttc < threshold_s
 
 
 def summary(tests: Sequence[dict]) -> dict:

@@ -8,7 +8,7 @@ definitions: docs/metrics.md (warning episodes).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -118,6 +118,13 @@ def braking_ttc(obj: ObjectTruth, accel_mps2: float) -> float | None:
     return float(closing_time(obj.ttc * -obj.v_long, obj.v_long, accel_mps2))
 
 
+def braking_alarm(episode: Mapping, threshold_s: float) -> bool:
+    """A false alarm (an episode's dict) for a vehicle truly braking so hard that, had it kept braking, its TTC
+    fell under the threshold (s)."""
+    ttc = episode.get("true_braking_ttc_s")
+    return bool(episode.get("false_alarm")) and ttc is not None and ttc < threshold_s
+
+
 def _episode_braking(truths: Sequence[FrameTruth], k0: int, k1: int, gt_id: int) -> tuple[float | None, float | None]:
     """(lowest braking TTC, the acceleration at that frame) of vehicle ``gt_id`` over frames ``k0..k1``."""
     best: tuple[float | None, float | None] = (None, None)
@@ -179,8 +186,7 @@ def warning_metrics(truths: Sequence[FrameTruth], results: Sequence[FrameResult]
         "threshold_s": float(threshold_s),
         "episodes": len(eps),
         "false_alarms": sum(e.false_alarm for e in eps),
-        "braking_false_alarms": sum(e.false_alarm and e.true_braking_ttc_s is not None
-                                    and e.true_braking_ttc_s < threshold_s for e in eps),
+        "braking_false_alarms": sum(braking_alarm(e.to_dict(), threshold_s) for e in eps),
         "first_warning_t_s": None if first is None else first.onset_t,
         "first_warning_ttc_s": None if first is None else first.true_ttc_at_conflict_s,
         "first_warning_early": None if first is None else (first.true_ttc_at_onset_s is None
