@@ -77,6 +77,9 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
                                           f"(CenterNet or YOLO layout); default: {default('detector')}"))
         p.add_argument("--refine-bottom", choices=("on", "off"), default=None,
                        help="CenterNet: sub-pixel bottom-edge refinement from the image (default: the detector's)")
+        p.add_argument("--weak-detections", type=float, default=None, metavar="SCORE",
+                       help="CenterNet: also give the tracker the boxes scoring from SCORE up to the detector's "
+                            "threshold, as weak detections (they extend tracks, never start one; default: off)")
     if "tracker" in stages:
         p.add_argument("--tracker", default=default("tracker"), metavar="NAME",
                        help=_RegistryHelp("tracker", f"registered tracker ({{names}}; default: {default('tracker')})"))
@@ -130,6 +133,13 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
             if name != "centernet" and not is_model_path(name):
                 raise UserError(f"--refine-bottom applies to the CenterNet detector, not {name!r}")
             kw["refine_bottom"] = refine == "on"
+        weak = getattr(args, "weak_detections", None)
+        if weak is not None:
+            if name != "centernet" and not is_model_path(name):
+                raise UserError(f"--weak-detections applies to the CenterNet detector, not {name!r}")
+            if not 0 <= weak <= 1:
+                raise UserError(f"--weak-detections must be a score in [0, 1], got {weak}")
+            kw["weak_score_threshold"] = weak
         update["detector"] = _component("detector", "--detector", name, kw, check)
     if "tracker" in stages:
         update["tracker"] = _component("tracker", "--tracker", args.tracker, check=check)

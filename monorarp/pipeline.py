@@ -26,13 +26,14 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from monorarp.camera import CameraModel
 from monorarp import registry
 from monorarp.types import (Detection, Detector, EgoSpeedEstimator, Frame, FrameResult, HorizonReading, HorizonStage,
                             ObjectState, RiskEstimate, RiskEstimator, StateEstimator, Track, Tracker, WarningStage,
-                            WarningState)
+                            WarningState, strong)
 
 
 class ComponentConfig(BaseModel):
@@ -95,7 +96,7 @@ class _Record:
 
     def result(self) -> FrameResult:
         f = self.frame
-        return FrameResult(index=f.index, t=f.t, detections=self.detections, tracks=self.tracks,
+        return FrameResult(index=f.index, t=f.t, detections=strong(self.detections), tracks=self.tracks,
                            states=self.states, risk=self.risk, ego_speed=self.ego_speed,
                            timings_ms=self.timings, warning=self.warning, horizon=self.horizon)
 
@@ -137,8 +138,14 @@ class Pipeline:
 
     # The stage steps, shared by both runners. Each takes and returns the frame's
     # working record and records its own time.
+    def detect(self, image: np.ndarray) -> list[Detection]:
+        """The detector's detections of ``image``, weak ones too when the tracker takes them and
+        the detector gives them (``uses_weak_detections`` on both)."""
+        weak = registry.uses(self.tracker, "weak_detections") and registry.uses(self.detector, "weak_detections")
+        return list(self.detector.detect(image, weak=True) if weak else self.detector.detect(image))
+
     def _detect(self, rec: _Record) -> _Record:
-        rec.detections = list(rec.timed("detector", self.detector.detect, rec.frame.image))
+        rec.detections = rec.timed("detector", self.detect, rec.frame.image)
         return rec
 
     def _ego_speed(self, rec: _Record) -> _Record:
@@ -155,7 +162,8 @@ class Pipeline:
 
     def _track(self, rec: _Record) -> _Record:
         f = rec.frame
-        rec.tracks = list(rec.timed("tracker", self.tracker.update, f.image, rec.detections, f.t))
+        dets = tracker_input(self.tracker, rec.detections)
+        rec.tracks = list(rec.timed("tracker", self.tracker.update, f.image, dets, f.t))
         return rec
 
     def _state(self, rec: _Record) -> _Record:
@@ -188,6 +196,12 @@ class Pipeline:
             rec = step(rec)
         rec.timings["total"] = (time.perf_counter() - t0) * 1e3
         return rec.result()
+
+
+def tracker_input(tracker: Tracker, detections: list[Detection]) -> list[Detection]:
+    """What ``tracker`` is given of a frame's detections: all, weak ones too, if it declares
+    ``uses_weak_detections``; otherwise the strong ones."""
+    return detections if registry.uses(tracker, "weak_detections") else strong(detections)
 
 
 # --------------------------------------------------------------------------- runners

@@ -82,7 +82,9 @@ def uses(component: Any, what: str) -> bool:
     ``seed`` (a sweep gives it the run's seed), ``ego_speed`` (a risk stage whose result depends
     on the ``ego_speed`` it is given; the harness may then fall back to the true speed), ``truth``
     (a detector that needs each frame's ground truth: it runs on simulated frames only), ``image``
-    (a state estimator that takes each frame's image as ``image=``).
+    (a state estimator that takes each frame's image as ``image=``), ``weak_detections`` (a detector
+    that gives weak detections, :attr:`monorarp.types.Detection.weak`, from ``detect(image, weak=True)``;
+    a tracker that is given them too).
     """
     return bool(getattr(component, f"uses_{what}", False))
 

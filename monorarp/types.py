@@ -13,7 +13,7 @@ close the module.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -33,9 +33,19 @@ class Frame:
 
 @dataclass(frozen=True)
 class Detection:
+    """A detector's box. ``weak``: scored under the detector's decision threshold; only a tracker that
+    declares ``uses_weak_detections`` gets it (to extend a track it already has), and it is no detection
+    in any output or metric."""
+
     box: Box
     score: float = 1.0
     label: str = "car"
+    weak: bool = False
+
+
+def strong(detections: Iterable[Detection]) -> list[Detection]:
+    """``detections`` without the weak ones (those under their detector's decision threshold)."""
+    return [d for d in detections if not d.weak]
 
 
 @dataclass(frozen=True)
@@ -161,7 +171,8 @@ class FrameResult:
 # tracker. Images are BGR uint8 (H, W, 3); ``t`` is the frame time (s).
 
 class Detector(Protocol):
-    """``detect(image) -> list[Detection]``: the vehicles of one frame."""
+    """``detect(image) -> list[Detection]``: the vehicles of one frame. A detector that declares
+    ``uses_weak_detections`` also takes ``weak=True`` and then adds its weak detections."""
 
     def detect(self, image: np.ndarray) -> list[Detection]: ...
 

@@ -33,7 +33,7 @@ from harness.scorecard.run import ScorecardOptions, build_tasks
 from harness.scorecard.score import trial_passed
 from harness.scoring.warnings import warning_metrics
 from monorarp import registry
-from monorarp.pipeline import Pipeline, PipelineConfig
+from monorarp.pipeline import Pipeline, PipelineConfig, tracker_input
 from monorarp.types import FrameResult, RiskEstimate
 
 _NO_IMAGE = np.zeros((1, 1), dtype=np.uint8)   # the recorded registration needs no frame
@@ -112,7 +112,7 @@ def cached_tracks(task, cache: Path, load: bool = True) -> dict | None:
     frames, truths = [], []
     for k, (frame, truth) in enumerate(rendered_frames(scenario, task.frames)):
         if pipe is not None:
-            dets = pipe.detector.detect(frame.image)
+            dets = tracker_input(pipe.tracker, pipe.detect(frame.image))
             frames.append((frame.index, frame.t, pipe.tracker.update(frame.image, dets, frame.t)))
             truths.append(truth)
         tracks = (data["frames"] if data is not None else frames)[k][2]

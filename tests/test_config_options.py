@@ -48,6 +48,7 @@ def test_run_options_round_trip():
                                  ego_speed=C("lsd_period"), horizon=C("online"))
     assert run_config("--ego-speed", "none", "--refine-bottom", "off").ego_speed is None
     assert run_config("--refine-bottom", "off").detector == C("centernet", refine_bottom=False)
+    assert run_config("--weak-detections", "0.3").detector == C("centernet", weak_score_threshold=0.3)
 
 
 def test_video_options_round_trip():
@@ -112,6 +113,10 @@ def test_video_leaves_names_to_the_run_after_its_input_checks(tmp_path, capsys):
 def test_options_that_do_not_apply_are_refused():
     with pytest.raises(UserError, match="--refine-bottom"):
         run_config("--detector", "yolo", "--refine-bottom", "on")
+    with pytest.raises(UserError, match="--weak-detections applies to the CenterNet detector, not 'oracle'"):
+        run_config("--detector", "oracle", "--weak-detections", "0.3")
+    with pytest.raises(UserError, match=r"--weak-detections must be a score in \[0, 1\], got 1.5"):
+        run_config("--weak-detections", "1.5")
     with pytest.raises(UserError, match="need --detector oracle"):
         run_config("--oracle-jitter", "1")
 

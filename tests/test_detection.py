@@ -214,8 +214,9 @@ def test_committed_centernet_finds_rendered_vehicles():
 
     scen = parse_scenario(SCENE)
     det = load_detector("centernet")
+    weak_det = load_detector("centernet", weak_score_threshold=0.3)
     assert isinstance(det, CenterNetDetector)
-    dets, scores, gts, igns = [], [], [], []
+    dets, scores, gts, igns, n_weak = [], [], [], [], 0
     with Renderer(scen) as r:
         for w in list(simulate(scen, 16))[::5]:
             fr = r.render(w)
@@ -224,14 +225,52 @@ def test_committed_centernet_finds_rendered_vehicles():
             vis = np.array([o.visibility for o in truth.objects])
             req = (vis >= 0.5) & (boxes[:, 3] - boxes[:, 1] >= 8)
             out = det.detect(fr.image)
+            both = weak_det.detect(fr.image, weak=True)      # the same strong boxes, plus weak ones under the threshold
+            assert [d for d in both if not d.weak] == out
+            assert all(0.3 <= d.score < det.score_threshold for d in both if d.weak)
+            n_weak += sum(d.weak for d in both)
             dets.append(np.array([d.box for d in out], float).reshape(-1, 4))
             scores.append(np.array([d.score for d in out]))
             gts.append(boxes[req])
             igns.append(boxes[~req])
     assert sum(len(g) for g in gts) >= 12          # the placed vehicles are all in view
+    print(f"weak detections: {n_weak}")
     ap = ap_at(dets, scores, gts, 0.5, igns)
     assert ap >= 0.8, f"AP@0.5 = {ap:.3f}"
     # the bottom edge (what the distance estimator reads) of the matched boxes is within a few px
     m = match(dets, scores, gts, 0.5, igns)
     err = np.array([dets[i][d, 3] - gts[i][j, 3] for i, d, j in m.pairs])
     assert np.median(np.abs(err)) <= 2.0
+
+
+def test_centernet_weak_detections(tmp_path):
+    """Peaks between the weak and the decision threshold come back marked weak, only when asked for."""
+    h, w, s = 48, 80, 4
+    hm = np.zeros((1, 1, h, w), np.float32)
+    lt = np.zeros((1, 4, h, w), np.float32)
+    for (i, j), score in (((10, 20), 0.9), ((30, 60), 0.4), ((40, 10), 0.2)):
+        cx, cy = s * j + 1.5, s * i + 1.5
+        lt[0, :, i, j] = 10.0                         # a 20x20 box around the cell centre
+        hm[0, 0, i, j] = score
+    path = constant_model(tmp_path / "cn.onnx", (1, 3, 192, 320), {"heatmap": hm, "ltrb": lt}, "image")
+    (tmp_path / "cn.json").write_text('{"score_threshold": 0.5, "weak_score_threshold": 0.3}')
+    det = CenterNetDetector(path)
+    assert det.weak_score_threshold == 0.3
+    img = np.zeros((192, 320, 3), np.uint8)
+    plain, both = det.detect(img), det.detect(img, weak=True)
+    assert [(d.score, d.weak) for d in plain] == [(pytest.approx(0.9), False)]
+    assert [(d.score, d.weak) for d in both] == [(pytest.approx(0.9), False), (pytest.approx(0.4), True)]
+    assert both[0] == plain[0]
+    assert CenterNetDetector(path, weak_score_threshold=0.5).detect(img, weak=True) == plain   # at the threshold: none
+    assert len(CenterNetDetector(path, weak_score_threshold=0.1).detect(img, weak=True)) == 3
+    with pytest.raises(ValueError, match="weak_score_threshold must be in"):
+        CenterNetDetector(path, weak_score_threshold=1.5)
+    (tmp_path / "cn.json").write_text('{"score_threshold": 0.5, "weak_score_threshold": 2}')
+    with pytest.raises(UserError, match=r"cn\.json: invalid detector metadata: weak_score_threshold 2\.0"):
+        CenterNetDetector(path)
+
+
+def test_shipped_model_gives_weak_detections_only_when_configured():
+    assert CenterNetDetector().weak_score_threshold is None              # opt-in (docs/tracking.md)
+    img = np.zeros((192, 320, 3), np.uint8)
+    assert not any(d.weak for d in CenterNetDetector().detect(img, weak=True))

@@ -133,8 +133,8 @@ def test_runs_with_reuse_write_the_same_files(tmp_path, monkeypatch):
     calls: list[int] = []
     real = CenterNetDetector.detect
 
-    def counting(self, image):
-        out = real(self, image)
+    def counting(self, image, **kw):
+        out = real(self, image, **kw)
         calls.append(len(out))
         return out
 

@@ -207,3 +207,42 @@ def test_every_stage_is_called_with_the_uniform_keywords():
         calls.clear()
         list(runner(Pipeline(FakeDetector(), ParticleTracker(seed=1), State(), Risk()), frames(2)))
         assert sorted(calls) == [("ego_speed", None)] * 2 + [("horizon", None)] * 2
+
+
+class WeakDetector(FakeDetector):
+    """FakeDetector plus one weak box per frame when asked for weak detections."""
+
+    uses_weak_detections = True
+
+    def detect(self, image: np.ndarray, weak: bool = False) -> list[Detection]:
+        extra = [Detection((200.0, 90.0, 230.0, 110.0), 0.35, weak=True)]
+        return super().detect(image) + (extra if weak else [])
+
+
+class RecordingTracker:
+    """Records what it is given; outputs nothing."""
+
+    def __init__(self) -> None:
+        self.given: list[list[Detection]] = []
+
+    def reset(self) -> None:
+        self.given = []
+
+    def update(self, image, detections, t):
+        self.given.append(list(detections))
+        return []
+
+
+class WeakRecordingTracker(RecordingTracker):
+    uses_weak_detections = True
+
+
+def test_weak_detections_reach_only_a_tracker_that_takes_them():
+    for tracker, wants in ((RecordingTracker(), False), (WeakRecordingTracker(), True)):
+        results = list(run_sync(make(WeakDetector(), tracker), frames(5)))
+        assert all(any(d.weak for d in given) == wants for given in tracker.given)
+        assert all(not any(d.weak for d in r.detections) and len(r.detections) >= 1 for r in results)
+    plain = RecordingTracker()                         # a detector without weak detections is never asked
+    list(run_sync(make(FakeDetector(), WeakRecordingTracker()), frames(3)))
+    list(run_sync(make(FakeDetector(), plain), frames(3)))
+    assert all(not any(d.weak for d in g) for g in plain.given)

@@ -243,3 +243,48 @@ def test_bad_parameters():
         ParticleTracker(vel_window=1)
     with pytest.raises(ValueError):
         ParticleTracker(max_lost=-1)
+
+
+# ------------------------------------------------------------ weak detections (second association pass)
+def test_weak_detection_extends_a_track_but_never_starts_one():
+    trk = ParticleTracker(seed=0, min_hits=2)
+    car, ghost = (100.0, 100.0, 140.0, 130.0), (300.0, 100.0, 330.0, 125.0)
+    for k in range(3):
+        trk.update(None, [Detection(car, 0.9)], k * DT)
+    tid = {t.id for t in trk.update(None, [Detection(car, 0.9)], 3 * DT)}
+    for k in range(4, 30):                     # the car only weakly seen; a weak box elsewhere
+        out = trk.update(None, [Detection(car, 0.35, weak=True), Detection(ghost, 0.35, weak=True)], k * DT)
+        assert {t.id for t in out} == tid      # past max_coast (10) too: the weak boxes keep it matched
+        assert all(t.coasting for t in out)    # but measure nothing: output as coasting (no state update)
+    out = trk.update(None, [Detection(car, 0.9)], 30 * DT)
+    assert {t.id for t in out} == tid and not out[0].coasting
+    plain = ParticleTracker(seed=0, min_hits=2)
+    for k in range(4):
+        plain.update(None, [Detection(car, 0.9)], k * DT)
+    for k in range(4, 30):                     # the same frames given no detection: coasts, then is dropped
+        out = plain.update(None, [], k * DT)
+    assert out == []
+
+
+def test_strong_detection_wins_over_a_weak_one_that_overlaps_more():
+    """A single pass would give the track the weak box (IoU 1.0 beats 0.6); the second-pass rule gives it the
+    strong one, and the weak box starts nothing."""
+    trk = ParticleTracker(seed=0, min_hits=1, meas_noise=0.02)
+    car = (100.0, 100.0, 140.0, 130.0)
+    for k in range(5):
+        trk.update(None, [Detection(car, 0.9)], k * DT)
+    shifted = (108.0, 100.0, 148.0, 130.0)     # IoU 0.67 with the car's box
+    assert iou_matrix(np.array([car]), np.array([shifted]))[0, 0] == pytest.approx(32 / 48)
+    out = trk.update(None, [Detection(car, 0.40, weak=True), Detection(shifted, 0.9)], 5 * DT)
+    assert len(out) == 1 and out[0].box == pytest.approx(shifted)
+    single = ParticleTracker(seed=0, min_hits=1, meas_noise=0.02)   # both strong: the closer box wins
+    for k in range(5):
+        single.update(None, [Detection(car, 0.9)], k * DT)
+    out = single.update(None, [Detection(car, 0.40), Detection(shifted, 0.9)], 5 * DT)
+    assert out[0].box == pytest.approx(car)
+
+
+def test_min_score_makes_low_scoring_detections_weak():
+    trk = ParticleTracker(seed=0, min_hits=1, min_score=0.5)
+    assert trk.update(None, [Detection((10.0, 10.0, 50.0, 40.0), 0.4)], 0.0) == []
+    assert len(trk.update(None, [Detection((10.0, 10.0, 50.0, 40.0), 0.6)], DT)) == 1

@@ -35,9 +35,9 @@ from harness.scoring.records import ObjectRecord
 from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
-from monorarp.pipeline import ComponentConfig, PipelineConfig
-from monorarp.registry import build, get_factory
-from monorarp.types import Detection, Frame, FrameResult
+from monorarp.pipeline import ComponentConfig, PipelineConfig, tracker_input
+from monorarp.registry import build, get_factory, uses
+from monorarp.types import Detection, Frame, FrameResult, strong
 
 if TYPE_CHECKING:
     from harness.frame_cache import FrameCache
@@ -87,6 +87,7 @@ def cache_sequence(scenario: Scenario, detector: Any, n_frames: int, name: str |
     if hasattr(detector, "reset"):
         detector.reset()
     set_truth = getattr(detector, "set_truth", None)       # the oracle detector reads the truth
+    weak = uses(detector, "weak_detections")               # kept; each tracker gets what it takes (tracker_input)
     frames, truths, dets, ms = [], [], [], []
     source = rendered_frames(scenario, n_frames) if cache is None else cache.frames(scenario, n_frames)
     how = "rendered" if cache is None or cache.last == "rendered" else "read from the frame cache"
@@ -95,7 +96,7 @@ def cache_sequence(scenario: Scenario, detector: Any, n_frames: int, name: str |
         if set_truth is not None:
             set_truth(truth, frame.image)
         t0 = time.perf_counter()
-        d = tuple(detector.detect(frame.image))
+        d = tuple(detector.detect(frame.image, weak=True) if weak else detector.detect(frame.image))
         ms.append((time.perf_counter() - t0) * 1e3)
         frames.append(frame)
         truths.append(truth)
@@ -126,14 +127,14 @@ def run_tracker(seq: CachedSequence, tracker: ComponentConfig, state: ComponentC
     tracker_ms = np.empty(len(seq.frames))
     for k, (frame, dets, det_ms) in enumerate(zip(seq.frames, seq.detections, seq.detector_ms)):
         t0 = time.perf_counter()
-        tracks = list(trk.update(frame.image, list(dets), frame.t))
+        tracks = list(trk.update(frame.image, tracker_input(trk, list(dets)), frame.t))
         t1 = time.perf_counter()
         states = dict(est.update(tracks, frame.t))
         t2 = time.perf_counter()
         risk_est = rsk.assess(states, frame.t)
         t3 = time.perf_counter()
         tracker_ms[k] = (t1 - t0) * 1e3
-        results.append(FrameResult(index=frame.index, t=frame.t, detections=list(dets), tracks=tracks, states=states,
+        results.append(FrameResult(index=frame.index, t=frame.t, detections=strong(dets), tracks=tracks, states=states,
                                    risk=risk_est, timings_ms={"detector": float(det_ms), "tracker": tracker_ms[k],
                                                               "state": (t2 - t1) * 1e3, "risk": (t3 - t2) * 1e3}))
     for r in results:

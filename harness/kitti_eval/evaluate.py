@@ -43,10 +43,11 @@ from harness.scoring import kitti_ap
 from harness.scoring.evaluate import EvalConfig, evaluate
 from harness.scoring.records import COLUMNS, _cell
 from harness.truth import EgoTruth, FrameTruth, ObjectTruth
+from monorarp import registry
 from monorarp.camera import CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
 from monorarp.readers import read_json_or_none
-from monorarp.types import Detection, Frame, FrameResult, RiskEstimate, Track, WarningState
+from monorarp.types import Detection, Frame, FrameResult, RiskEstimate, Track, WarningState, strong
 
 METRICS_NAME = "metrics.json"
 PER_OBJECT_NAME = "per_object.csv"
@@ -75,13 +76,16 @@ class QueuedDetector:
     """The pipeline's detector stage here: hands back the detections queued for the frame, made beforehand
     (the detector runs on the decoding threads, in parallel with the rest of the pipeline) or, for
     ``--detector labels``, the frame's vehicle label boxes (``Car``, ``Van``, ``Truck``), score 1, labelled
-    with their type in lower case (an oracle with KITTI's label precision)."""
+    with their type in lower case (an oracle with KITTI's label precision). The queue holds the weak
+    detections too (:attr:`~monorarp.types.Detection.weak`), for a tracker that takes them."""
+
+    uses_weak_detections = True
 
     def __init__(self) -> None:
         self.queued: list[Detection] = []
 
-    def detect(self, image: np.ndarray) -> list[Detection]:
-        return list(self.queued)
+    def detect(self, image: np.ndarray, weak: bool = False) -> list[Detection]:
+        return list(self.queued) if weak else strong(self.queued)
 
 
 class PerImageTracker:
@@ -312,7 +316,7 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[KittiFrameTru
         if det is None:
             return image, cam, None, 0.0
         t0 = time.perf_counter()
-        dets = list(det.detect(image))
+        dets = list(det.detect(image, weak=True) if registry.uses(det, "weak_detections") else det.detect(image))
         return image, cam, dets, (time.perf_counter() - t0) * 1e3
 
     for (s_idx, starts, sample), (image, (camera, offset, info), dets, det_ms) in zip(

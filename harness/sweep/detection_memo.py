@@ -30,8 +30,9 @@ import numpy as np
 
 from monorarp.camera import CameraModel
 from monorarp.io import to_jsonable
+from monorarp import registry
 from monorarp.pipeline import ComponentConfig
-from monorarp.types import Detection, FrameResult
+from monorarp.types import Detection, FrameResult, strong
 
 MAX_FRAMES = 20_000   # frames kept (least recently used dropped): a few MB
 
@@ -95,17 +96,23 @@ class ReplayingDetector:
         self._history = self.identity
         self._own_ms = []
 
-    def detect(self, image: np.ndarray) -> list[Detection]:
+    @property
+    def uses_weak_detections(self) -> bool:
+        return registry.uses(self.inner, "weak_detections")
+
+    def detect(self, image: np.ndarray, weak: bool = False) -> list[Detection]:
+        """The inner detector's detections (weak ones too when asked), computed once per history:
+        kept with the weak ones (when it gives them), so a run that takes none shares them."""
         self._history = hashlib.sha256(self._history + image_digest(image)).digest()
         hit = self.memo.get(self._history)
         if hit is None:
             t0 = time.perf_counter()
-            dets = tuple(self.inner.detect(image))
+            dets = tuple(self.inner.detect(image, weak=True) if self.uses_weak_detections else self.inner.detect(image))
             ms = (time.perf_counter() - t0) * 1e3
             self.memo.put(self._history, dets, ms)
             hit = (dets, ms)
         self._own_ms.append(hit[1])
-        return list(hit[0])
+        return list(hit[0]) if weak else strong(hit[0])
 
     __call__ = detect
 

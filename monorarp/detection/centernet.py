@@ -21,7 +21,7 @@ from monorarp.detection.bottom_edge import refine_bottom as refine_bottom_edges
 from monorarp.detection.fovea import Fovea, merge
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
-from monorarp.types import Detection
+from monorarp.types import Detection, strong
 
 REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes/edge.md)
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_vehicle.onnx"
@@ -38,6 +38,7 @@ class CenterNetMeta:
     pad_value: int = 114
     label: str = "car"
     max_detections: int = 100
+    weak_score_threshold: float | None = None   # weak detections from here up to score_threshold (None: none)
 
     @classmethod
     def load(cls, model_path: Path) -> "CenterNetMeta":
@@ -50,14 +51,18 @@ class CenterNetMeta:
         try:
             meta = cls(stride=int(d.get("stride", 4)), score_threshold=float(d.get("score_threshold", 0.3)),
                        pad_value=int(d.get("pad_value", 114)), label=str(d.get("label", "car")),
-                       max_detections=int(d.get("max_detections", 100)))
+                       max_detections=int(d.get("max_detections", 100)),
+                       weak_score_threshold=None if d.get("weak_score_threshold") is None
+                       else float(d["weak_score_threshold"]))
         except (ValueError, TypeError, AttributeError, OverflowError) as e:
             raise ModelError(f"{p}: unreadable detector metadata ({e})") from None
         bad = [f"{k} {v!r} (want {want})" for k, v, ok, want in (
             ("stride", meta.stride, 1 <= meta.stride <= 64, "1..64"),
             ("score_threshold", meta.score_threshold, 0 <= meta.score_threshold <= 1, "0..1"),
             ("pad_value", meta.pad_value, 0 <= meta.pad_value <= 255, "0..255"),
-            ("max_detections", meta.max_detections, 1 <= meta.max_detections <= 100_000, "1..100000")) if not ok]
+            ("max_detections", meta.max_detections, 1 <= meta.max_detections <= 100_000, "1..100000"),
+            ("weak_score_threshold", meta.weak_score_threshold,
+             meta.weak_score_threshold is None or 0 <= meta.weak_score_threshold <= 1, "0..1 or null")) if not ok]
         if bad:
             raise ModelError(f"{p}: invalid detector metadata: {', '.join(bad)}")
         return meta
@@ -109,6 +114,9 @@ class CenterNetDetector:
     second pass (default: when a camera is given). ``fovea_*``: see :func:`monorarp.detection.fovea.merge`
     and :meth:`~monorarp.detection.fovea.Fovea.place` (``zoom``, ``below``, ``margin_px``,
     ``dup_iou``, ``support`` (None: plain union), ``box``, ``max_height``).
+    ``weak_score_threshold``: ``detect(image, weak=True)`` also returns the boxes scoring from it up to
+    the score threshold, marked ``weak`` (for a tracker's second association pass; None: the model
+    file's ``weak_score_threshold``, if any; at or above the score threshold: none).
     ``refine_bottom``: move each box's bottom edge to the vehicle/road transition found in the
     image to a fraction of a pixel (:func:`monorarp.detection.bottom_edge.refine_bottom`;
     the detector's edge stays where no clear edge lies within a few px of it). ``dehaze``: remove haze
@@ -116,6 +124,7 @@ class CenterNetDetector:
     """
 
     uses_camera = True   # the registry passes the run's camera
+    uses_weak_detections = True   # detect(image, weak=True) gives them
 
     FOVEA_DEFAULTS = {"fovea_zoom": 2.0, "fovea_below": 0.25}
 
@@ -125,7 +134,7 @@ class CenterNetDetector:
                  fovea_zoom: float = FOVEA_DEFAULTS["fovea_zoom"], fovea_below: float = FOVEA_DEFAULTS["fovea_below"],
                  fovea_margin_px: float = 2.0, fovea_dup_iou: float = 0.3, fovea_support: float | None = 0.2,
                  fovea_box: str = "auto", fovea_max_height: float = 0.35, refine_bottom: bool = REFINE_DEFAULT,
-                 dehaze: bool = False,
+                 dehaze: bool = False, weak_score_threshold: float | None = None,
                  **_ignored) -> None:
         self.path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         self.session = open_session(self.path, intra_op_num_threads)
@@ -145,6 +154,10 @@ class CenterNetDetector:
                              f"for stride {s}, found {list(shapes['heatmap'])} and {list(shapes['ltrb'])}")
         self.score_threshold = self.meta.score_threshold if score_threshold is None else float(score_threshold)
         self.max_detections = self.meta.max_detections if max_detections is None else int(max_detections)
+        weak = self.meta.weak_score_threshold if weak_score_threshold is None else float(weak_score_threshold)
+        if weak is not None and not 0 <= weak <= 1:
+            raise ValueError(f"weak_score_threshold must be in [0, 1], got {weak}")
+        self.weak_score_threshold = weak
         self._lb: Letterbox | None = None
         self.camera = CameraModel.from_dict(camera) if isinstance(camera, dict) else camera
         self._foveate_arg = foveate
@@ -200,37 +213,45 @@ class CenterNetDetector:
         self._fovea = ((width, height), fov, lb)
         return fov, lb
 
-    def detect_arrays(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """BGR uint8 image -> (boxes (K, 4) source px, unclipped; scores (K,)), both passes merged."""
+    def detect_arrays(self, image: np.ndarray, threshold: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """BGR uint8 image -> (boxes (K, 4) source px, unclipped; scores (K,)), both passes merged.
+
+        ``threshold``: decode down to this score (at most the score threshold; None: the score threshold).
+        """
+        thr = self.score_threshold if threshold is None else min(float(threshold), self.score_threshold)
+        support = None if self.fovea_support is None else min(self.fovea_support, thr)
         if self.dehaze:
             from monorarp.detection.dehaze import dehaze
 
             image = dehaze(image)
         hm, lt, lb = self.raw(image)
-        boxes, scores = decode(hm, lt, self.meta.stride, self.score_threshold, self.max_detections)
+        boxes, scores = decode(hm, lt, self.meta.stride, thr, self.max_detections)
         boxes = lb.to_src(boxes, clip=False)
         fov, flb = self.fovea(image.shape[1], image.shape[0])
         if fov is not None:
             hm, lt, _ = self.raw(fov.cut(image), flb)
-            lo = self.score_threshold if self.fovea_support is None else self.fovea_support
-            fb, fs = decode(hm, lt, self.meta.stride, lo, self.max_detections)
+            fb, fs = decode(hm, lt, self.meta.stride, thr if support is None else support, self.max_detections)
             fb = fov.to_src(flb.to_src(fb, clip=False))
-            boxes, scores = merge(boxes, scores, fb, fs, fov, self.score_threshold, self.fovea_support,
+            boxes, scores = merge(boxes, scores, fb, fs, fov, thr, support,
                                   self.fovea_margin_px, self.fovea_dup_iou, self.fovea_box,
                                   self.fovea_max_height)
         if self.refine_bottom and len(boxes):
             boxes, _ = refine_bottom_edges(image, boxes)
         return boxes, scores
 
-    def detect(self, image: np.ndarray) -> list[Detection]:
-        """BGR uint8 image -> vehicle detections in its pixel coordinates."""
-        boxes, scores = self.detect_arrays(image)
+    def detect(self, image: np.ndarray, weak: bool = False) -> list[Detection]:
+        """BGR uint8 image -> vehicle detections in its pixel coordinates (``weak``: the weak ones too).
+
+        Both are decoded at the weak threshold, so the detections are the same either way.
+        """
+        boxes, scores = self.detect_arrays(image, self.weak_score_threshold)
         h, w = image.shape[:2]
         boxes[:, [0, 2]] = np.clip(boxes[:, [0, 2]], -0.5, w - 0.5)
         boxes[:, [1, 3]] = np.clip(boxes[:, [1, 3]], -0.5, h - 0.5)
         keep = (boxes[:, 2] - boxes[:, 0] > 1.0) & (boxes[:, 3] - boxes[:, 1] > 1.0)
-        return [Detection(tuple(map(float, b)), float(sc), self.meta.label)
+        dets = [Detection(tuple(map(float, b)), float(sc), self.meta.label, weak=bool(sc < self.score_threshold))
                 for b, sc in zip(boxes[keep], scores[keep])]
+        return dets if weak else strong(dets)
 
     __call__ = detect
 

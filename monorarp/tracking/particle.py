@@ -61,6 +61,11 @@ def fit_velocity(z: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.where(den[:, None] > 0, num / np.where(den > 0, den, 1.0)[:, None], 0.0)
 
 
+def _indices(parts: list[np.ndarray]) -> np.ndarray:
+    """Index arrays joined into one int array (empty when there are none)."""
+    return np.concatenate(parts).astype(int) if parts else np.empty(0, dtype=int)
+
+
 class ParticleTracker(BookTracker):
     """Multi-object particle tracker; ``update(image, detections, t) -> list[Track]``.
 
@@ -79,12 +84,15 @@ class ParticleTracker(BookTracker):
         occluded_cover, duplicate_cover: a coasting box covered this much by a nearer / a
             not nearer detection of this frame is not output (module docstring; > 1: off).
         spawn_iou: a detection with this IoU with a matched detection starts no track (> 1: off).
-        min_score: detections below this score update tracks but never start one.
+        min_score: detections below this score are weak, as those the detector marks ``weak``
+            (under its decision threshold): they never start a track and only extend tracks that
+            no strong detection matched (a second association pass, as ByteTrack's).
         box_output: ``"detection"`` or ``"mean"`` (see module docstring).
         seed: RNG seed (results are deterministic for a given seed).
     """
 
     uses_seed = True     # a sweep passes the run's seed
+    uses_weak_detections = True   # the pipeline gives it the detector's weak detections too
 
     def __init__(self, n_particles: int = 100, pos_noise: float = 0.03, size_noise: float = 0.02,
                  meas_noise: float = 0.05, min_iou: float = 0.2, min_hits: int = 2, max_coast: int = 10,
@@ -128,6 +136,7 @@ class ParticleTracker(BookTracker):
             vel=((4,), f),              # box velocity per track (px/s)
             out=((4,), f),              # output box (x1, y1, x2, y2)
             hits=((), np.int64), misses=((), np.int64),
+            weak_hit=((), bool),        # last matched detection was weak (output as coasting: no measurement)
             last_det=((4,), f),         # last matched detection box (x1, y1, x2, y2)
             hist=((w, 4), f),           # last matched detections (cxcywh), ring buffer
             hist_t=((w,), f))           # their frame times (NaN: empty slot)
@@ -200,6 +209,30 @@ class ParticleTracker(BookTracker):
         return ((np.where(nearer, cover, 0.0).max(axis=1) >= self.occluded_cover)
                 | (np.where(nearer, 0.0, cover).max(axis=1) >= self.duplicate_cover))
 
+    def _associate(self, pred: np.ndarray, det_boxes: np.ndarray,
+                   strong: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Match tracks to detections in passes; return (track rows, detection indices, unmatched strong ones).
+
+        Active tracks (tentative, tracked, coasting) first, then lost ones, each time on the
+        ``strong`` detections; then the weak ones on the tracks still unmatched, in the same order
+        (ByteTrack's second pass: a weak detection extends a track, never displaces a strong one,
+        never starts one). With no weak detection the last two passes have nothing to do.
+        """
+        active = np.flatnonzero(self._book.misses <= self.max_coast)
+        lost = np.flatnonzero(self._book.misses > self.max_coast)
+        free_t = np.ones(len(pred), dtype=bool)
+        free_d = np.ones(len(det_boxes), dtype=bool)
+        rows, cols = [], []
+        for tracks, dets in ((active, strong), (lost, strong), (active, ~strong), (lost, ~strong)):
+            t_idx, d_idx = tracks[free_t[tracks]], np.flatnonzero(dets & free_d)
+            if not len(t_idx) or not len(d_idx):
+                continue
+            m, _, _, _ = associate_iou(pred[t_idx], det_boxes[d_idx], self.min_iou)
+            rows.append(t_idx[m[:, 0]])
+            cols.append(d_idx[m[:, 1]])
+            free_t[rows[-1]], free_d[cols[-1]] = False, False
+        return _indices(rows), _indices(cols), np.flatnonzero(strong & free_d)
+
     # ------------------------------------------------------------------ API
     def update(self, image: np.ndarray | None, detections: Sequence[Detection], t: float) -> list[Track]:
         """Advance to frame time ``t`` (s) with this frame's detections; return the output tracks.
@@ -217,16 +250,8 @@ class ParticleTracker(BookTracker):
 
         self._predict(dt)
         pred = cxcywh_to_boxes(book.mean)
-        # Active tracks (tentative, tracked, coasting) first; lost ones only get what is left over.
-        active = np.flatnonzero(book.misses <= self.max_coast)
-        lost = np.flatnonzero(book.misses > self.max_coast)
-        matches, _, un_d, _ = associate_iou(pred[active], det_boxes, self.min_iou)
-        rows, cols = active[matches[:, 0]], matches[:, 1]
-        if len(lost) and len(un_d):
-            m_lost, _, rest, _ = associate_iou(pred[lost], det_boxes[un_d], self.min_iou)
-            rows = np.concatenate([rows, lost[m_lost[:, 0]]])
-            cols = np.concatenate([cols, un_d[m_lost[:, 1]]])
-            un_d = un_d[rest]
+        strong = (det_scores >= self.min_score) & ~np.array([d.weak for d in detections], dtype=bool)
+        rows, cols, un_d = self._associate(pred, det_boxes, strong)
         matched = np.zeros(self.n_tracks, dtype=bool)
         matched[rows] = True
         if len(rows):
@@ -235,6 +260,7 @@ class ParticleTracker(BookTracker):
             book.out[rows] = (det_boxes[cols] if self.box_output == "detection"
                               else cxcywh_to_boxes(book.mean[rows]))
             book.last_det[rows] = det_boxes[cols]
+            book.weak_hit[rows] = ~strong[cols]
             book.hit(rows, det_scores[cols], [detections[c].label for c in cols])
         coast = ~matched
         book.out[coast] = cxcywh_to_boxes(book.mean[coast])
@@ -247,7 +273,7 @@ class ParticleTracker(BookTracker):
         if not alive.all():
             book.keep(alive)
 
-        new = un_d[det_scores[un_d] >= self.min_score] if len(un_d) else un_d
+        new = un_d
         if len(new) and len(cols):
             # A second box on a vehicle a track already holds this frame starts no track.
             new = new[iou_matrix(det_boxes[new], det_boxes[cols]).max(axis=1) < self.spawn_iou]
@@ -261,4 +287,4 @@ class ParticleTracker(BookTracker):
         if hide.any() and n_det:
             show[hide] = ~self._covered(book.out[hide], det_boxes)
         rows = np.flatnonzero(show)
-        return book.tracks(rows, book.out[rows], coasting=book.misses[rows] > 0)
+        return book.tracks(rows, book.out[rows], coasting=(book.misses[rows] > 0) | book.weak_hit[rows])
