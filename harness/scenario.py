@@ -141,6 +141,9 @@ class Traffic(_Model):
     lane_changes: bool = True
     idm: IDMParams = IDMParams()
     mobil: MOBILParams = MOBILParams()
+    warmup_s: float = Field(0.0, ge=0, le=60, description=(
+        "the world simulated this long (s) before frame 0, so that the braking wave of the placement is "
+        "over when the camera starts (placed vehicles' distance_m hold at its start); 0: frame 0 is the placement"))
 
     @model_validator(mode="after")
     def _range(self) -> "Traffic":
@@ -148,6 +151,13 @@ class Traffic(_Model):
         if not 0 <= lo <= hi <= 60:
             raise ValueError("speed_range_mps must be [low, high] with 0 <= low <= high <= 60")
         return self
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        data = handler(self)
+        if not self.warmup_s:   # no warm-up dumps as before the field existed
+            data.pop("warmup_s", None)
+        return data
 
 
 Behaviour = Literal["idm", "constant_speed", "stationary"]
@@ -298,6 +308,9 @@ class Scenario(_Model):
             raise ValueError(f"ego.lane {self.ego.lane} does not exist on a {self.road.lanes}-lane road")
         if self.camera_motion is not None:
             self.camera_motion.check(self.camera.model(), self.fps)
+        if self.traffic.warmup_s and self.events:
+            raise ValueError("traffic.warmup_s: a warm-up needs a scenario without events (their times and "
+                             "cut-in gaps are set from the placement)")
         names = [v.name for v in self.vehicles]
         dup = {n for n in names if names.count(n) > 1}
         if dup:

@@ -26,6 +26,11 @@ BAD = [
      ["events.0", "teleport"]),
     # 640x360, hfov 70 deg: fy = 320/tan(35 deg) = 457 px, horizon = 179.5 - 457*tan(30 deg) = -84 px
     ("camera_horizon_outside_image", "name: x\ncamera:\n  pitch_deg: 30\n", ["camera", "horizon"]),
+    ("warm_up_with_events",
+     "name: x\ntraffic:\n  warmup_s: 3\nvehicles:\n  - {name: lead, distance_m: 20}\n"
+     "events:\n  - {type: brake, vehicle: lead, at_s: 1, decel_mps2: 5}\n",
+     ["traffic.warmup_s", "without events"]),
+    ("warm_up_too_long", "name: x\ntraffic:\n  warmup_s: 61\n", ["traffic.warmup_s", "60"]),
     ("missing_name", "seed: 3\n", ["name", "required"]),
     ("not_a_mapping", "- a\n- b\n", ["mapping"]),
     ("empty_file", "", ["mapping"]),

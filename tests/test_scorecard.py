@@ -43,6 +43,15 @@ def test_risk_family_has_at_least_200_runs_mixing_conflicts():
     assert 0.3 < sum(t.conflict for t in fam) / len(fam) < 0.7
 
 
+def test_nominal_suite_warms_its_traffic_up():
+    """Every nominal run of the suite starts after a 4 s warm-up (docs/scorecard.md); a protocol without
+    ``warmup_s`` leaves the scenario's own traffic as it is."""
+    runs = expand_protocol(load_protocol(FCW / "nominal.yaml"), FCW / "nominal.yaml")
+    assert runs and all(t.scenario["traffic"]["warmup_s"] == 4.0 for t in runs)
+    tuning = expand_protocol(load_protocol(FCW / "tuning.yaml"), FCW / "tuning.yaml")
+    assert all("warmup_s" not in t.scenario.get("traffic", {}) for t in tuning if t.kind == "nominal")
+
+
 def test_contact_time_closed_forms():
     assert contact_time(100.0, 20.0, 0.0, 0.0, 0.0) == pytest.approx(5.0, abs=0.011)
     assert contact_time(30.0, 20.0, 10.0, 0.0, 0.0) == pytest.approx(3.0, abs=0.011)
@@ -62,6 +71,8 @@ def test_contact_time_closed_forms():
      "ego_speed_kmh"),
     ({"test": "X", "kind": "rear_end", "target_motion": "stationary", "ego_speed_kmh": [50]}, "required_ttc_s"),
     ({"test": "X", "kind": "rear_end", "speed": 3}, "speed"),
+    ({"test": "X", "kind": "rear_end", "target_motion": "stationary", "ego_speed_kmh": [50], "required_ttc_s": 2.0,
+      "warmup_s": 4.0}, "warmup_s"),
 ])
 def test_impossible_protocols_name_the_field(tmp_path, test, field):
     p = tmp_path / "bad.yaml"

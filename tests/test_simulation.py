@@ -254,6 +254,58 @@ def test_vectorised_road_matches_highway_env_road():
     assert by_name(end, "rammer").crashed and by_name(end, "slow").crashed   # vehicle-vehicle collisions exercised
 
 
+# ----------------------------------------------------------------- warm-up
+def test_warm_up_frame_zero_is_the_placement_run_that_long():
+    """Frame 0 after a 2 s warm-up is frame 30 of the same world without one (15 frames/s), shown at t = 0."""
+    base = {**{k: v for k, v in BUSY.items() if k != "events"}, "duration_s": 4.0}
+    cold = list(simulate(scenario(**base)))
+    warm = list(simulate(scenario(**{**base, "traffic": {**base["traffic"], "warmup_s": 2.0}})))
+    assert warm[0].frame == 0 and warm[0].t == 0.0 and len(warm) == len(cold)
+    assert warm[0].ego == cold[30].ego and warm[0].vehicles == cold[30].vehicles
+    assert warm[10].vehicles == cold[40].vehicles
+    assert warm[0].ego.x > cold[0].ego.x + 30          # the ego drove 2 s at about 22 m/s
+
+
+def _hard_braking_in_path(sc, first_s: float, decel_mps2: float = 3.0) -> int:
+    """Frames in the first ``first_s`` in which a vehicle in the ego's lane within 45 m ahead decelerates
+    harder than ``decel_mps2`` (m/s^2), from the simulated speeds."""
+    n, prev = 0, None
+    for st in simulate(sc, int(round(first_s * sc.fps)) + 1):
+        if prev is not None:
+            before = {v.id: v for v in prev.vehicles}
+            n += sum(1 for v in st.vehicles if v.id in before and v.lane == st.ego.lane and 0 < v.x - st.ego.x < 45
+                     and (v.speed - before[v.id].speed) * sc.fps < -decel_mps2)
+        prev = st
+    return n
+
+
+def test_warm_up_lets_the_placement_braking_wave_pass():
+    """highway-env's random placement packs dense traffic closer than IDM's gap: leads brake hard in the
+    first seconds. After the nominal suite's 4 s warm-up none does (seeds 1001-1004 of dense_traffic)."""
+    data = yaml.safe_load((SCENARIOS / "dense_traffic.yaml").read_text())
+    cold = [parse_scenario({**data, "seed": s}) for s in range(1001, 1005)]
+    warm = [parse_scenario({**data, "seed": s, "traffic": {**data["traffic"], "warmup_s": 4.0}})
+            for s in range(1001, 1005)]
+    assert sum(_hard_braking_in_path(sc, 3.0) for sc in cold) >= 20
+    assert sum(_hard_braking_in_path(sc, 3.0) for sc in warm) == 0
+
+
+def test_warm_up_places_road_features_from_the_camera_at_frame_zero():
+    sc = scenario(road={"profile": [{"start_m": 100, "grade": 0.03, "transition_m": 50}],
+                        "curves": [{"start_m": 150, "radius_m": 800, "direction": "left", "length_m": 100}]},
+                  traffic={"vehicles_count": 0, "warmup_s": 3.0}, ego={"speed_mps": 20})
+    sim = Simulation(sc)
+    camera = sim.state().ego.x + sc.camera.forward_offset_m
+    assert sim.state().ego.x == pytest.approx(250 + 60)
+    assert sim.profile.starts[0] == pytest.approx(camera + 100) and sim.plan.starts[0] == pytest.approx(camera + 150)
+
+
+def test_no_warm_up_dumps_as_before_the_field_existed():
+    """Cache keys and run.json of every scenario without a warm-up stay as they were."""
+    assert "warmup_s" not in scenario().model_dump(mode="json")["traffic"]
+    assert scenario(traffic={"warmup_s": 2.0}).model_dump(mode="json")["traffic"]["warmup_s"] == 2.0
+
+
 # ----------------------------------------------------------------- bad input
 @pytest.mark.parametrize("kw,needle", [
     (dict(road={"lanes": 1, "length_m": 400}, ego={"lane": 0}), "road.length_m"),
@@ -264,6 +316,8 @@ def test_vectorised_road_matches_highway_env_road():
     (dict(vehicles=[{"name": "c", "lane": 1, "distance_m": 20}],
           events=[{"type": "cut_in", "vehicle": "c", "at_s": 1, "gap_m": 10},
                   {"type": "cut_in", "vehicle": "c", "at_s": 3, "gap_m": 10}]), "more than one cut_in"),
+    (dict(road={"lanes": 1, "length_m": 800}, ego={"lane": 0, "speed_mps": 20}, duration_s=10,
+          traffic={"warmup_s": 10}), "road.length_m"),     # 250 + 20 m/s x 20 s + 200 > 800 (650 without it)
 ])
 def test_unsimulatable_scenarios_raise_one_clear_error(kw, needle):
     with pytest.raises(ScenarioError, match=needle):

@@ -68,6 +68,7 @@ class Test(_Model):
     scenarios: list[str] = Field(default_factory=list)
     seeds: list[int] = Field(default_factory=list)
     duration_s: float | None = Field(None, gt=0, le=3600)
+    warmup_s: float = Field(0.0, ge=0, le=60)
 
     @model_validator(mode="after")
     def _consistent(self) -> "Test":
@@ -97,6 +98,8 @@ class Test(_Model):
             if not self.scenarios or not self.seeds:
                 raise ValueError("a nominal test needs scenarios and seeds")
             return self
+        if self.warmup_s:
+            raise ValueError("warmup_s: only a nominal test's traffic has a warm-up (a conflict's is timed from t = 0)")
         moving = self.target_motion in ("moving", "braking") or self.kind in ("cut_in", "pass_by")
         if moving and self.target_speed_kmh <= 0:
             raise ValueError(f"target_speed_kmh: a {self.kind} test with a {self.target_motion} target "
@@ -278,6 +281,8 @@ def expand_protocol(protocol: Protocol, source: str | Path, trials: int | None =
                     scn["seed"] = seed
                     if t.duration_s:
                         scn["duration_s"] = t.duration_s
+                    if t.warmup_s:
+                        scn["traffic"] = {**scn.get("traffic", {}), "warmup_s": t.warmup_s}
                     if protocol.camera:
                         scn["camera"] = {**scn.get("camera", {}), **protocol.camera}
                     key = f"{t.test}__{Path(file).stem}"

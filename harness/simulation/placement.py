@@ -48,15 +48,17 @@ def placed_centre_x(ego_x: float, camera_forward_offset_m: float, distance_m: fl
     return ego_x + camera_forward_offset_m + distance_m + length_m / 2
 
 
-def road_profile(segments, camera_forward_offset_m: float) -> RoadProfile | None:
+def road_profile(segments, camera_forward_offset_m: float, ego_x_m: float = EGO_START_X_M) -> RoadProfile | None:
     """A scenario's ``road.profile`` in absolute road ``x``: each ``start_m`` is measured from the
-    camera at t = 0 (like a placed vehicle's ``distance_m``); None for a level road."""
-    return RoadProfile.from_segments(segments, EGO_START_X_M + camera_forward_offset_m)
+    camera at t = 0 (like a placed vehicle's ``distance_m``; ``ego_x_m``: the ego's centre then);
+    None for a level road."""
+    return RoadProfile.from_segments(segments, ego_x_m + camera_forward_offset_m)
 
 
-def road_plan(curves, camera_forward_offset_m: float) -> RoadPlan | None:
-    """A scenario's ``road.curves`` in absolute road ``x`` (``start_m`` from the camera at t = 0); None: straight."""
-    return RoadPlan.from_segments(curves, EGO_START_X_M + camera_forward_offset_m)
+def road_plan(curves, camera_forward_offset_m: float, ego_x_m: float = EGO_START_X_M) -> RoadPlan | None:
+    """A scenario's ``road.curves`` in absolute road ``x`` (``start_m`` from the camera at t = 0, the ego's
+    centre then at ``ego_x_m``); None: straight."""
+    return RoadPlan.from_segments(curves, ego_x_m + camera_forward_offset_m)
 
 
 def cut_in_distance(gap_m: float, at_s: float, vehicle_speed_mps: float, ego_speed_mps: float) -> float:

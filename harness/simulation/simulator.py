@@ -2,7 +2,9 @@
 
 ``Simulation(scenario)`` builds the road (:mod:`.road`), the ego (id 0), the
 placed vehicles (ids 1..P in file order) and the random traffic (ids P+1..N in
-placement order) — deterministically for ``scenario.seed``. Each
+placement order) — deterministically for ``scenario.seed``. With ``traffic.warmup_s``
+the world first runs that long (frames ``-W .. -1``, not shown), so frame 0 is the traffic
+after the placement's braking wave; road features are placed from the camera at frame 0. Each
 :meth:`Simulation.step` runs ``road.act(); road.step(dt)`` exactly once with
 ``dt = 1 / fps``; frame ``k`` has ``t = k / fps`` (frame count, no float
 accumulation). highway-env's collision checks stay on (``crashed`` flags).
@@ -52,8 +54,10 @@ class Simulation:
         self.road.vehicles = [self.ego, *(v for v in placed if isinstance(v, ScenarioVehicle)), *traffic]
         self.road.objects = [v for v in placed if isinstance(v, StationaryVehicle)]
         self._others = sorted([*placed, *traffic], key=lambda v: v.vid)
-        self.profile = road_profile(scenario.road.profile, scenario.camera.forward_offset_m)
-        self.plan = road_plan(scenario.road.curves, scenario.camera.forward_offset_m)
+        self._warm_up(int(round(scenario.traffic.warmup_s * self.fps)))
+        ego_x = float(self.ego.position[0])
+        self.profile = road_profile(scenario.road.profile, scenario.camera.forward_offset_m, ego_x)
+        self.plan = road_plan(scenario.road.curves, scenario.camera.forward_offset_m, ego_x)
 
     # ---------------------------------------------------------------- public
     @property
@@ -74,6 +78,14 @@ class Simulation:
         return self.state()
 
     # ---------------------------------------------------------------- building
+    def _warm_up(self, n_frames: int) -> None:
+        """Run the world ``n_frames`` frames before frame 0 (clock at ``-n_frames .. -1``)."""
+        self._clock.frame = -n_frames
+        for _ in range(n_frames):
+            self.road.act()
+            self.road.step(self.dt)
+            self._clock.frame += 1
+
     def _vehicle_kwargs(self) -> dict:
         t = self.scenario.traffic
         return dict(road=self.road, clock=self._clock, idm=t.idm, mobil=t.mobil)
@@ -186,9 +198,10 @@ def _check_road_length(s: sc.Scenario) -> None:
     """The ego must have road ahead for the whole scenario (lanes end at ``road.length_m``)."""
     v_max = max([s.ego.speed_mps] + [e.target_speed_mps for e in s.events
                                      if isinstance(e, sc.SpeedChangeEvent) and e.vehicle == "ego"])
-    need = EGO_START_X_M + v_max * s.duration_s + LOOKAHEAD_M
+    drive_s = s.traffic.warmup_s + s.duration_s
+    need = EGO_START_X_M + v_max * drive_s + LOOKAHEAD_M
     if s.road.length_m < need:
         raise ScenarioError(
             f"scenario {s.name!r}: road.length_m: {s.road.length_m:g} m is too short; the ego starts at "
-            f"{EGO_START_X_M:g} m and drives up to {v_max * s.duration_s:.0f} m in {s.duration_s:g} s, "
+            f"{EGO_START_X_M:g} m and drives up to {v_max * drive_s:.0f} m in {drive_s:g} s, "
             f"needing at least {need:.0f} m")
