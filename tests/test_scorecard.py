@@ -52,6 +52,23 @@ def test_nominal_suite_warms_its_traffic_up():
     assert all("warmup_s" not in t.scenario.get("traffic", {}) for t in tuning if t.kind == "nominal")
 
 
+def test_a_warmed_up_nominal_run_starts_later_and_the_scorecard_says_so(tmp_path):
+    from harness.scorecard.report import console_table
+    from harness.scorecard.run import ScorecardOptions, run_scorecard
+
+    p = tmp_path / "warm.yaml"
+    p.write_text(json.dumps({"suite": "warm", "tests": [
+        {"test": "Nominal", "kind": "nominal", "scenarios": [str(FCW.parent / "highway_cruise.yaml")], "seeds": [5],
+         "duration_s": 1.0, "warmup_s": 2.0}]}))
+    card = run_scorecard(tmp_path / "out", ScorecardOptions(protocol_files=[p], detector="oracle", frames=4,
+                                                            progress=False))
+    assert card["false_alarms"]["runs"] == 1 and card["false_alarms"]["warmup_s"] == [2.0]
+    assert "(1 runs, traffic warmed up 2 s)" in console_table(card)
+    first = json.loads((tmp_path / "out" / "runs" / "warm__Nominal__highway_cruise__seed5" / "ground_truth.jsonl")
+                       .read_text().splitlines()[0])
+    assert first["frame"] == 0 and first["ego"]["x"] > 250 + 2.0 * 15   # the ego (25 m/s) drove 2 s before frame 0
+
+
 def test_contact_time_closed_forms():
     assert contact_time(100.0, 20.0, 0.0, 0.0, 0.0) == pytest.approx(5.0, abs=0.011)
     assert contact_time(30.0, 20.0, 10.0, 0.0, 0.0) == pytest.approx(3.0, abs=0.011)
@@ -230,3 +247,7 @@ def test_the_scorecard_says_how_many_false_alarms_were_for_a_braking_vehicle():
           "list": [{"run": "r", "t_s": 2.0, "why": "w", "true_braking_ttc_s": 2.4}]}
     text = console_table({"tests": [], "false_alarms": fa, "risk": None, "summary": {}, "failed_runs": []})
     assert "= 1.5 per hour (2 of them for a vehicle truly braking" in text
+    assert "(360 runs) =" in text        # no warm-up: nothing said
+    fa["warmup_s"] = [0.0]
+    assert "(360 runs) =" in console_table({"tests": [], "false_alarms": fa, "risk": None, "summary": {},
+                                            "failed_runs": []})

@@ -33,6 +33,14 @@ def tests_rows(card: Mapping) -> tuple[list[str], list[list], list[str]]:
     return header, rows, classes
 
 
+def _warmup_note(fa: Mapping) -> str:
+    """``", traffic warmed up 4 s"`` when the nominal runs' worlds ran before frame 0 (``traffic.warmup_s``)."""
+    w = [v for v in fa.get("warmup_s") or [] if v]
+    if not w:
+        return ""
+    return ", traffic warmed up " + " / ".join(f"{v:g}" for v in fa["warmup_s"]) + " s"
+
+
 def _braking_note(fa: Mapping) -> str:
     """``" (N of them: ...)"`` for the false alarms whose vehicle truly braked hard enough (docs/metrics.md)."""
     n = fa.get("braking")
@@ -53,7 +61,7 @@ def console_table(card: Mapping) -> str:
     fa = card["false_alarms"]
     if fa["runs"]:
         lines.append(f"false alarms: {fa['episodes']} in {fa['hours']:.2f} h / {fa['km']:.1f} km of nominal "
-                     f"traffic ({fa['runs']} runs) = {_fmt(fa['per_hour'])} per hour{_braking_note(fa)}")
+                     f"traffic ({fa['runs']} runs{_warmup_note(fa)}) = {_fmt(fa['per_hour'])} per hour{_braking_note(fa)}")
         for e in fa["list"][:20]:
             lines.append(f"  {e['run']} t={e['t_s']:.2f}s: {e['why']}")
     if card.get("risk"):
@@ -139,7 +147,8 @@ def render_scorecard(card: Mapping, roc_curves: Mapping | None = None, standalon
     fa = card["false_alarms"]
     if fa["runs"]:
         parts.append(f"<h3>False alarms in nominal traffic</h3><p><b>{fa['episodes']}</b> warning episodes without "
-                     f"a conflict in {fa['hours']:.2f} h ({fa['km']:.1f} km, {fa['runs']} runs): "
+                     f"a conflict in {fa['hours']:.2f} h ({fa['km']:.1f} km, {fa['runs']} runs"
+                     f"{html.escape(_warmup_note(fa))}): "
                      f"<b>{_fmt(fa['per_hour'])}</b> per hour{html.escape(_braking_note(fa))}.</p>")
         if fa["list"]:
             parts.append(_table(["run", "t (s)", "track", "vehicle", "braking held: true TTC (s)", "why"],

@@ -252,6 +252,8 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
                          "per_hour": len(fa_episodes) / hours if hours > 0 else None,
                          "per_100km": 100 * len(fa_episodes) / exposure_km if exposure_km > 0 else None,
                          "runs": sum(t.kind == "nominal" for t in trials),
+                         "warmup_s": sorted({float(t.scenario.get("traffic", {}).get("warmup_s", 0.0))
+                                             for t in trials if t.kind == "nominal"}),
                          "braking": sum(e["braking"] for e in fa_episodes), "list": fa_episodes},
         "risk": score.pooled_risk(risk_runs) if risk_runs else None,
         "failed_runs": failed,
