@@ -11,6 +11,7 @@ BUILTINS: dict[str, dict[str, str]] = {
     "detector": {
         "centernet": "monorarp.detection.centernet:CenterNetDetector",
         "centernet_robust": "monorarp.detection.centernet:RobustCenterNetDetector",
+        "centernet_dense": "monorarp.detection.centernet:DenseCenterNetDetector",
         "yolo": "monorarp.detection.yolo:YoloDetector",
     },
     "tracker": {

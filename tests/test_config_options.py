@@ -121,6 +121,12 @@ def test_options_that_do_not_apply_are_refused():
         run_config("--oracle-jitter", "1")
 
 
+@pytest.mark.parametrize("name", ["centernet", "centernet_robust", "centernet_dense"])
+def test_centernet_options_apply_to_every_registered_centernet_model(name):
+    cfg = run_config("--detector", name, "--weak-detections", "0.3", "--refine-bottom", "off")
+    assert cfg.detector == C(name, refine_bottom=False, weak_score_threshold=0.3)
+
+
 def test_validate_names_before_any_model_loads(tmp_path):
     cfg = PipelineConfig(detector=C(str(tmp_path / "absent.onnx")), tracker=C("nope"))
     with pytest.raises(registry.UnknownComponentError, match="unknown tracker 'nope'"):

@@ -10,6 +10,7 @@ import pytest
 
 from monorarp.detection import load_detector
 from monorarp.detection.centernet import DEFAULT_MODEL, ROBUST_MODEL, RobustCenterNetDetector
+from rendered_frame import first_frame
 from training import appearance
 from training.appearance import Style
 
@@ -127,14 +128,10 @@ def test_onnx_weights_read_back_compute_the_same_outputs():
 
 
 def test_robust_model_is_small_registered_and_finds_a_rendered_vehicle():
-    from harness.ground_truth import frame_truth
-    from harness.render.renderer import Renderer
-    from harness.scenario import parse_scenario
-    from harness.simulation.simulator import simulate
     from monorarp.boxes import iou
 
     assert ROBUST_MODEL.stat().st_size <= 10_000_000
-    scen = parse_scenario({
+    scen, image, truth = first_frame({
         "name": "robust_check", "seed": 3, "duration_s": 1.0, "fps": 15.0, "road": {"lanes": 3},
         "ego": {"lane": 1, "speed_mps": 25.0}, "traffic": {"vehicles_count": 1, "density": 0.2},
         "vehicles": [{"name": "lead", "lane": 0, "distance_m": 15.0, "speed_mps": 25.0, "behaviour": "constant_speed"}],
@@ -142,11 +139,7 @@ def test_robust_model_is_small_registered_and_finds_a_rendered_vehicle():
         "conditions": {"time_of_day": "dusk", "fog_visibility_m": 150.0}})
     det = load_detector("centernet_robust", camera=scen.camera.model())
     assert isinstance(det, RobustCenterNetDetector) and det.path == ROBUST_MODEL
-    with Renderer(scen) as r:
-        w = next(iter(simulate(scen, 1)))
-        fr = r.render(w)
-        truth = frame_truth(w, r.camera, fr.id_mask, fr.full_pixels)
     lead = min((o for o in truth.objects if abs(o.d_lat) < 1.0), key=lambda o: o.d_long)
     assert 13.0 < lead.d_long < 17.0
-    boxes = np.array([d.box for d in det.detect(fr.image)], float).reshape(-1, 4)
+    boxes = np.array([d.box for d in det.detect(image)], float).reshape(-1, 4)
     assert len(boxes) and iou(boxes, np.array(lead.box, float)[None]).max() >= 0.7

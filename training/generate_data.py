@@ -110,6 +110,32 @@ def random_conditions(rng: np.random.Generator) -> dict:
     return out
 
 
+def densify(rng: np.random.Generator, sd: dict) -> None:
+    """Make a :func:`scenario_dict` scenario dense occluding traffic, in place: at least 3 lanes, 25-50
+    vehicles at density 2-3.5, and 1-3 pairs of placed cars in adjacent lanes at 20-70 m, the far one
+    2-12 m behind the near one, so that the near car hides part of the far one (as in ``dense_traffic``)."""
+    sd["road"]["lanes"] = max(3, sd["road"]["lanes"])
+    ego_lane, lanes = sd["ego"]["lane"], sd["road"]["lanes"]
+    speed = sd["ego"]["speed_mps"]
+    sd["traffic"]["vehicles_count"] = int(rng.integers(25, 51))
+    sd["traffic"]["density"] = round(float(rng.uniform(2.0, 3.5)), 2)
+    placed = sd["vehicles"]
+    for k in range(int(rng.integers(1, 4))):
+        near = int(rng.integers(-ego_lane, lanes - ego_lane))
+        far = near + int(rng.choice([-1, 1]))
+        if not -ego_lane <= far < lanes - ego_lane:
+            far = near - (far - near)
+        d = float(rng.uniform(20, 70))
+        for rel, dist in ((near, d), (far, d + float(rng.uniform(2, 12)))):
+            if any(v["lane"] == rel and abs(v["distance_m"] - dist) < 8 for v in placed):
+                continue
+            placed.append({"name": f"o{k}_{len(placed)}", "lane": rel, "distance_m": round(dist, 2),
+                           "speed_mps": round(max(0.0, speed + float(rng.normal(0, 1.0))), 2),
+                           "behaviour": "idm", "lane_changes": False,
+                           "length_m": round(float(rng.uniform(3.8, 5.6)), 2),
+                           "width_m": round(float(rng.uniform(1.6, 2.1)), 2)})
+
+
 def random_dimensions(rng: np.random.Generator, vehicles: list[dict]) -> None:
     """Redraw the placed vehicles' footprints (m) in place from wider ranges than :func:`scenario_dict`'s:
     cars and vans 3.4-6.8 m x 1.5-2.2 m (over 5.5 m the mesh is a tall van), 25 % trucks 7.5-18 m x 2.3-2.6 m."""
@@ -162,7 +188,7 @@ def fine_truth(renderer: Renderer, world, n: int) -> dict[int, np.ndarray]:
 def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, frame_stride: int,
              resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
              fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1,
-             conditions: float = 0.0, styled: float = 0.0, family: str = "train") -> None:
+             conditions: float = 0.0, styled: float = 0.0, family: str = "train", dense: float = 0.0) -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
     the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
@@ -174,7 +200,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
     aligned with ``boxes.npy``, source px; NaN where the vehicle has no pixel at the finer scale): the
     1x mask rounds each edge to a pixel boundary, +-0.5 px. A fraction ``styled`` of the scenarios gets an
     appearance style of ``family`` (``train`` or ``heldout``, :mod:`training.appearance`; ``none``: no style)
-    and wider placed-vehicle dimensions."""
+    and wider placed-vehicle dimensions. A fraction ``dense`` is made dense occluding traffic (:func:`densify`)."""
     if keep_source and (len(set(resolutions)) != 1 or fovea):
         raise SystemExit("--keep-source needs a single resolution and no --fovea")
     if truth_supersample > 1 and not keep_source:
@@ -189,6 +215,9 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         res = resolutions[int(rng.integers(len(resolutions)))]
         try:
             sd = scenario_dict(rng, s, seed, res)
+            drng = np.random.default_rng([seed, s, 0xDE5])
+            if drng.random() < dense:
+                densify(drng, sd)
             crng = np.random.default_rng([seed, s, 0xC0D])
             if crng.random() < conditions:
                 sd["conditions"] = random_conditions(crng)
@@ -252,7 +281,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         "frames_per_scenario": frames_per_scenario, "frame_stride": frame_stride,
         "resolutions": [list(r) for r in resolutions], "min_visibility": min_visibility,
         "min_size_net_px": min_size, "fovea": fovea, "conditions_fraction": conditions,
-        "appearance_fraction": styled, "appearance_family": family, "images": metas}, indent=1))
+        "appearance_fraction": styled, "appearance_family": family, "dense_fraction": dense, "images": metas}, indent=1))
     req = sum(m["n_required"] for m in metas)
     print(f"wrote {len(images)} images, {req} required boxes, {len(rows) - req} ignored to {out} "
           f"({skipped} scenarios skipped) in {time.time() - t0:.0f}s", flush=True)
@@ -280,15 +309,19 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--appearance-family", choices=("train", "heldout", "none"), default="train",
                     help="style family: train, the held-out family (validation only), or none (the same "
                          "scenes and vehicle sizes, unstyled)")
+    ap.add_argument("--dense", type=float, default=0.0, metavar="P",
+                    help="fraction of scenarios made dense occluding traffic (densify; default 0)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
     if not 0.0 <= a.conditions <= 1.0:
         ap.error("--conditions must be a fraction in [0, 1]")
+    if not 0.0 <= a.dense <= 1.0:
+        ap.error("--dense must be a fraction in [0, 1]")
     if not 0.0 <= a.appearance <= 1.0:
         ap.error("--appearance must be a fraction in [0, 1]")
     generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
-             a.keep_source, a.truth_supersample, a.conditions, a.appearance, a.appearance_family)
+             a.keep_source, a.truth_supersample, a.conditions, a.appearance, a.appearance_family, a.dense)
 
 
 if __name__ == "__main__":

@@ -63,6 +63,22 @@ def net_from_onnx(path: Path) -> CenterNetVehicle:
     return net
 
 
+def fine_tune_shipped(d: Path, shards: list[Path], ckpt: Path, epochs: int, batch: int, lr: float, seed: int,
+                      force: bool) -> Path:
+    """Fine-tune the shipped model (its ONNX weights read back into ``d/shipped_init.pt``, BatchNorm frozen)
+    on ``shards``; return ``ckpt`` (both steps skipped when their output exists, unless ``force``)."""
+    from monorarp.detection.centernet import DEFAULT_MODEL
+    from training import train
+
+    init = d / "shipped_init.pt"
+    if force or not init.exists():
+        main(["--onnx", str(DEFAULT_MODEL), "--out", str(init)])
+    if force or not ckpt.exists():
+        train.main(["--data", *map(str, shards), "--out", str(ckpt), "--init", str(init), "--freeze-bn",
+                    "--epochs", str(epochs), "--batch", str(batch), "--lr", str(lr), "--seed", str(seed)])
+    return ckpt
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--onnx", type=Path, default=Path("monorarp/models/centernet_vehicle.onnx"))

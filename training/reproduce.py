@@ -8,6 +8,7 @@ second pass sees.
     pip install -e '.[train]'
     python -m training.reproduce            # writes monorarp/models/centernet_vehicle.{onnx,json}
     python -m training.reproduce --variant robust   # centernet_vehicle_robust.{onnx,json} (training.robust)
+    python -m training.reproduce --variant dense    # centernet_vehicle_dense.{onnx,json} (training.dense)
 
 Stages are skipped when their output exists (``--force`` redoes them). Everything is
 seeded; the renderer (Mesa llvmpipe) and torch's CPU kernels are deterministic on
@@ -25,7 +26,7 @@ import cv2
 import numpy as np
 
 from monorarp.camera import CameraModel
-from training import evaluate, export, generate_data, robust, train
+from training import dense, evaluate, export, generate_data, robust, train
 from training.data import Dataset
 
 TRAIN_SHARDS = ((0, 150), (1, 150))       # (seed, scenarios); 10 frames each
@@ -75,8 +76,8 @@ def training_card() -> dict:
     }
 
 
-def shipped_checkpoint(d: Path, force: bool) -> Path:
-    """Data, stage 1 from scratch, stage 2 with fovea crops; return the final checkpoint."""
+def shipped_data(d: Path, force: bool) -> list[Path]:
+    """Render the shipped model's shards (full views, then full views + fovea crops); return them."""
     for seed, n in TRAIN_SHARDS:
         if force or not (d / f"train{seed}" / "meta.json").exists():
             generate_data.main(["--out", str(d / f"train{seed}"), "--scenarios", str(n), "--seed", str(seed)])
@@ -84,6 +85,12 @@ def shipped_checkpoint(d: Path, force: bool) -> Path:
         if force or not (d / f"train{seed}f" / "meta.json").exists():
             generate_data.main(["--out", str(d / f"train{seed}f"), "--scenarios", str(n), "--seed", str(seed),
                                 "--fovea"])
+    return [d / f"train{s}" for s, _ in TRAIN_SHARDS] + [d / f"train{s}f" for s, _ in FOVEA_SHARDS]
+
+
+def shipped_checkpoint(d: Path, force: bool) -> Path:
+    """Data, stage 1 from scratch, stage 2 with fovea crops; return the final checkpoint."""
+    shipped_data(d, force)
     ckpt = d / "centernet.pt"
     if force or not ckpt.exists():
         train.main(["--data", *[str(d / f"train{s}") for s, _ in TRAIN_SHARDS], "--out", str(ckpt),
@@ -106,24 +113,30 @@ def val_figures(model: Path, data: Path) -> dict:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--data", type=Path, default=Path("data"))
-    ap.add_argument("--variant", choices=("shipped", "robust"), default="shipped",
-                    help="shipped: centernet_vehicle; robust: centernet_vehicle_robust (training.robust)")
+    ap.add_argument("--variant", choices=("shipped", "robust", "dense"), default="shipped",
+                    help="shipped: centernet_vehicle; robust: centernet_vehicle_robust (training.robust); "
+                         "dense: centernet_vehicle_dense (training.dense)")
     ap.add_argument("--out", type=Path, default=None, help="default: the variant's file in monorarp/models/")
     ap.add_argument("--force", action="store_true")
     a = ap.parse_args(argv)
     d = a.data
     robust_variant = a.variant == "robust"
-    out = a.out or (robust.OUT if robust_variant else Path("monorarp/models/centernet_vehicle.onnx"))
+    out = a.out or {"robust": robust.OUT, "dense": dense.OUT}.get(a.variant, Path("monorarp/models/centernet_vehicle.onnx"))
     vs, vn, vf = VAL
     if a.force or not (d / "val" / "meta.json").exists():
         generate_data.main(["--out", str(d / "val"), "--scenarios", str(vn), "--seed", str(vs),
                             "--frames", str(vf), "--resolutions", "640x360"])
-    ckpt = robust.checkpoint(d, a.force) if robust_variant else shipped_checkpoint(d, a.force)
+    if a.variant == "dense":
+        ckpt = dense.checkpoint(d, shipped_data(d, a.force), a.force)
+    else:
+        ckpt = robust.checkpoint(d, a.force) if robust_variant else shipped_checkpoint(d, a.force)
     export.export(ckpt, out, d / "val")
     # validation at a low threshold (AP), then the F1-optimal threshold goes into the metadata
     out.with_suffix(".json").unlink(missing_ok=True)
     figs = val_figures(out, d / "val")
     extra = {k: val_figures(out, p) for k, p in robust.style_val_dirs(d).items()} if robust_variant else {}
+    if a.variant == "dense":
+        extra = {"dense": val_figures(out, dense.val_dir(d))}
     if robust_variant:   # threshold: best F1 over the plain and in-family styled sets (never the held-out one)
         ds_thr = Dataset.concat([d / "val", robust.style_val_dirs(d)["styled"]])
         det = evaluate.CenterNetDetector(out, score_threshold=0.05, refine_bottom=False)
@@ -143,10 +156,17 @@ def main(argv: list[str] | None = None) -> None:
                            "bottom-edge figures are the net's own (one pass on the 320x192 validation canvases)")
     val_note = (f"{VAL[1]} scenarios (seed {VAL[0]}), {VAL[2]} frames each, 640x360; "
                 "required boxes: visibility >= 0.3 and >= 3 px at 320x192 (others ignored)")
+    cards = {"robust": robust.training_card, "dense": lambda: dense.training_card(training_card()["data"])}
     meta = model_card(out.stem, thr, out) | {
-        "training": robust.training_card() if robust_variant else training_card(),
+        "training": cards.get(a.variant, training_card)(),
         "validation": {"data": val_note, **figs}}
     for k, f in extra.items():
+        if k == "dense":
+            dv = dense.DENSE_VAL
+            meta["validation_dense"] = {"data": f"{dv[1]} scenarios (seed {dv[0]}), {dv[2]} frames each, 640x360, every "
+                                                "scenario dense occluding traffic (training.generate_data --dense); "
+                                                "required boxes as above", **f}
+            continue
         sv = robust.STYLE_VAL
         style = {"unstyled": "no style", "styled": "a style of the training family",
                  "heldout": "a style of the held-out family"}[k]

@@ -21,7 +21,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from monorarp.detection.centernet import DEFAULT_MODEL, ROBUST_MODEL
-from training import generate_data, onnx_init, train
+from training import generate_data, onnx_init
 
 SHARDS = ((10, 150), (11, 150))          # (seed, scenarios); 10 frames each, full view + fovea crop
 CONDITIONS, APPEARANCE = 0.5, 0.7        # fractions of scenarios with conditions / with a style
@@ -52,15 +52,8 @@ def make_data(d: Path, force: bool) -> list[Path]:
 
 def checkpoint(d: Path, force: bool) -> Path:
     """Data, the shipped model's weights as the start, fine-tuning; return the checkpoint."""
-    shards = make_data(d, force)
-    init = d / "shipped_init.pt"
-    if force or not init.exists():
-        onnx_init.main(["--onnx", str(DEFAULT_MODEL), "--out", str(init)])
-    ckpt = d / "centernet_robust.pt"
-    if force or not ckpt.exists():
-        train.main(["--data", *map(str, shards), "--out", str(ckpt), "--init", str(init), "--freeze-bn",
-                    "--epochs", str(EPOCHS), "--batch", str(BATCH), "--lr", str(LR), "--seed", str(SEED)])
-    return ckpt
+    return onnx_init.fine_tune_shipped(d, make_data(d, force), d / "centernet_robust.pt", EPOCHS, BATCH, LR, SEED,
+                                       force)
 
 
 def training_card() -> dict:

@@ -26,6 +26,7 @@ from monorarp.types import Detection, strong
 REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes/edge.md)
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_vehicle.onnx"
 ROBUST_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_robust.onnx")
+DENSE_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_dense.onnx")
 OUTPUT_NAMES = ("heatmap", "ltrb")
 
 
@@ -263,3 +264,13 @@ class RobustCenterNetDetector(CenterNetDetector):
     def __init__(self, model_path: str | Path | None = None, camera: CameraModel | dict | None = None,
                  **kw) -> None:
         super().__init__(ROBUST_MODEL if model_path is None else model_path, camera=camera, **kw)
+
+
+class DenseCenterNetDetector(CenterNetDetector):
+    """:class:`CenterNetDetector` with the model fine-tuned also on dense occluding traffic,
+    ``centernet_vehicle_dense.onnx`` (registered as ``centernet_dense``; training and figures:
+    docs/tracking.md, dense traffic)."""
+
+    def __init__(self, model_path: str | Path | None = None, camera: CameraModel | dict | None = None,
+                 **kw) -> None:
+        super().__init__(DENSE_MODEL if model_path is None else model_path, camera=camera, **kw)
