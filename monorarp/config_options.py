@@ -121,20 +121,7 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
     options as in ``base``, default :class:`PipelineConfig`). Raises :class:`UserError` (one line naming
     the option) for an option that does not apply and, with ``check``, for an unknown name (without it,
     :meth:`Pipeline.from_config` refuses unknown names, for a command that checks its inputs first)."""
-    from monorarp.detection import is_model_path
-
-    def centernet_family(name: str) -> bool:
-        """A CenterNet model file, or a registered detector whose class is (a subclass of) CenterNet's."""
-        if is_model_path(name):
-            return True
-        from monorarp import registry
-        from monorarp.detection.centernet import CenterNetDetector
-
-        try:
-            factory = registry.get_factory("detector", name)
-        except registry.UnknownComponentError:   # refused later, naming --detector
-            return False
-        return isinstance(factory, type) and issubclass(factory, CenterNetDetector)
+    from monorarp.detection import is_centernet
 
     cfg = base if base is not None else PipelineConfig()
     stages = getattr(args, "_pipeline_stages", ())
@@ -143,12 +130,12 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
         name, kw = str(args.detector), {}
         refine = getattr(args, "refine_bottom", None)
         if refine is not None:
-            if not centernet_family(name):
+            if not is_centernet(name):
                 raise UserError(f"--refine-bottom applies to the CenterNet detector, not {name!r}")
             kw["refine_bottom"] = refine == "on"
         weak = getattr(args, "weak_detections", None)
         if weak is not None:
-            if not centernet_family(name):
+            if not is_centernet(name):
                 raise UserError(f"--weak-detections applies to the CenterNet detector, not {name!r}")
             if not 0 <= weak <= 1:
                 raise UserError(f"--weak-detections must be a score in [0, 1], got {weak}")

@@ -23,6 +23,8 @@ from training import generate_data, onnx_init
 
 DENSE_SHARDS = ((20, 200),)              # (seed, scenarios); 10 frames each, full view + fovea crop, all dense
 DENSE_VAL = (100020, 40, 8)              # seed, scenarios, frames; 640x360; all dense
+VAL_NOTE = (f"{DENSE_VAL[1]} scenarios (seed {DENSE_VAL[0]}), {DENSE_VAL[2]} frames each, 640x360, every scenario "
+            "dense occluding traffic (training.generate_data --dense); required boxes as above")
 EPOCHS, BATCH, LR, SEED = 6, 16, 1e-3, 3
 OUT = DENSE_MODEL
 

@@ -135,8 +135,6 @@ def main(argv: list[str] | None = None) -> None:
     out.with_suffix(".json").unlink(missing_ok=True)
     figs = val_figures(out, d / "val")
     extra = {k: val_figures(out, p) for k, p in robust.style_val_dirs(d).items()} if robust_variant else {}
-    if a.variant == "dense":
-        extra = {"dense": val_figures(out, dense.val_dir(d))}
     if robust_variant:   # threshold: best F1 over the plain and in-family styled sets (never the held-out one)
         ds_thr = Dataset.concat([d / "val", robust.style_val_dirs(d)["styled"]])
         det = evaluate.CenterNetDetector(out, score_threshold=0.05, refine_bottom=False)
@@ -160,13 +158,9 @@ def main(argv: list[str] | None = None) -> None:
     meta = model_card(out.stem, thr, out) | {
         "training": cards.get(a.variant, training_card)(),
         "validation": {"data": val_note, **figs}}
+    if a.variant == "dense":
+        meta["validation_dense"] = {"data": dense.VAL_NOTE, **val_figures(out, dense.val_dir(d))}
     for k, f in extra.items():
-        if k == "dense":
-            dv = dense.DENSE_VAL
-            meta["validation_dense"] = {"data": f"{dv[1]} scenarios (seed {dv[0]}), {dv[2]} frames each, 640x360, every "
-                                                "scenario dense occluding traffic (training.generate_data --dense); "
-                                                "required boxes as above", **f}
-            continue
         sv = robust.STYLE_VAL
         style = {"unstyled": "no style", "styled": "a style of the training family",
                  "heldout": "a style of the held-out family"}[k]

@@ -31,6 +31,22 @@ def build_detector(component: "ComponentConfig", camera: Any = None) -> Detector
     return load_detector(component.name, camera=camera, **component.kwargs)
 
 
+def is_centernet(name_or_path: str) -> bool:
+    """Whether options of CenterNet's apply: a model file, or a registered detector whose class is
+    (a subclass of) :class:`~monorarp.detection.centernet.CenterNetDetector`. An unknown name: False
+    (the caller refuses it, naming its option)."""
+    if is_model_path(str(name_or_path)):
+        return True
+    from monorarp import registry
+    from monorarp.detection.centernet import CenterNetDetector
+
+    try:
+        factory = registry.get_factory("detector", str(name_or_path))
+    except registry.UnknownComponentError:
+        return False
+    return isinstance(factory, type) and issubclass(factory, CenterNetDetector)
+
+
 def load_detector(name_or_path: str | Path, camera: Any = None, **kw: Any) -> Detector:
     """A detector from a registered name (``centernet``, ``yolo``, plug-ins) or an ``.onnx`` path.
 
