@@ -243,6 +243,9 @@ def test_bad_parameters():
         ParticleTracker(vel_window=1)
     with pytest.raises(ValueError):
         ParticleTracker(max_lost=-1)
+    for bad in ({"reid_distance": 0.0}, {"reid_distance": 1.5}, {"reid_gate": 0.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            ParticleTracker(**bad)
 
 
 # ------------------------------------------------------------ weak detections (second association pass)
@@ -288,3 +291,75 @@ def test_min_score_makes_low_scoring_detections_weak():
     trk = ParticleTracker(seed=0, min_hits=1, min_score=0.5)
     assert trk.update(None, [Detection((10.0, 10.0, 50.0, 40.0), 0.4)], 0.0) == []
     assert len(trk.update(None, [Detection((10.0, 10.0, 50.0, 40.0), 0.6)], DT)) == 1
+
+
+def _painted(boxes_colours, shape=(240, 400)):
+    """A grey image with each (box, BGR colour) painted in, later ones in front."""
+    image = np.full((*shape, 3), 90, np.uint8)
+    for b, colour in boxes_colours:
+        x1, y1, x2, y2 = (int(round(v)) for v in b)
+        image[y1:y2, x1:x2] = colour
+        image[y1:y1 + (y2 - y1) // 3, x1:x2] = (25, 25, 25)            # a dark rear window
+    return image
+
+
+def _reappearing(colour_after):
+    """A red car tracked 20 frames (+1 px/frame), unseen 30, then seen 60 px behind its predicted box
+    (IoU 0 with it, so only appearance can re-identify it), painted ``colour_after``."""
+    red = (30, 30, 200)
+    frames, images = [], []
+    for k in range(70):
+        if k < 20:
+            b = box_at(100 + k, 150, 30, 20)
+            frames.append(({1: b}, [b]))
+            images.append(_painted([(b, red)]))
+        elif k < 50:
+            frames.append(({}, []))
+            images.append(_painted([]))
+        else:
+            b = box_at(90, 150, 30, 20)
+            frames.append(({1: b}, [b]))
+            images.append(_painted([(b, colour_after)]))
+    return frames, images
+
+
+def test_lost_vehicle_is_reidentified_by_its_colour_not_by_a_differently_coloured_one():
+    frames, images = _reappearing((30, 30, 200))
+    _, outs = run(ParticleTracker(), frames, images)
+    assert {tr.id for o in outs for tr in o} == {0}                           # the red car keeps id 0
+    _, outs = run(ParticleTracker(reid_distance=None), frames, images)
+    assert {tr.id for o in outs[50:] for tr in o} == {1}                      # off: a new id
+    frames, images = _reappearing((200, 80, 20))                              # a blue car there instead
+    _, outs = run(ParticleTracker(), frames, images)
+    assert {tr.id for o in outs[50:] for tr in o} == {1}
+    _, outs = run(ParticleTracker(), *_reappearing((30, 30, 200))[:1])        # no image: no appearance
+    assert {tr.id for o in outs[50:] for tr in o} == {1}
+
+
+def test_reidentified_track_forgets_its_old_motion():
+    """After re-identification the particles restart at the detection with no velocity: coasting on
+    (the car unseen again), its box stays where the car was seen, instead of drifting back along the
+    line the least-squares velocity would draw through the old and the new positions."""
+    frames, images = _reappearing((30, 30, 200))
+    frames = frames[:51] + [({}, [])] * 6
+    images = images[:51] + [images[50]] * 6
+    _, outs = run(ParticleTracker(box_output="mean"), frames, images)
+    assert [tr.id for tr in outs[50]] == [0] and all(tr.coasting for tr in outs[56])
+    assert outs[56][0].box == pytest.approx(tuple(box_at(90, 150, 30, 20)), abs=2.0)
+
+
+def test_track_only_a_weak_box_supports_is_not_output_on_a_nearer_detected_vehicle():
+    """A box on a near car's window is tracked while strong; when it turns weak, its track is judged as
+    a coasting one (not output: it lies inside the near car's strong, nearer box)."""
+    near, window = (0.0, 0.0, 100.0, 100.0), (60.0, 20.0, 80.0, 40.0)
+    trk = ParticleTracker(seed=0, min_hits=1)
+    for k in range(3):
+        out = trk.update(None, [Detection(near, 0.9), Detection(window, 0.9)], k * DT)
+    assert len(out) == 2
+    out = trk.update(None, [Detection(near, 0.9), Detection(window, 0.35, weak=True)], 3 * DT)
+    assert [tr.box for tr in out] == [pytest.approx(near)]
+    alone = ParticleTracker(seed=0, min_hits=1)                            # no near car: still output
+    for k in range(3):
+        alone.update(None, [Detection(window, 0.9)], k * DT)
+    out = alone.update(None, [Detection(window, 0.35, weak=True)], 3 * DT)
+    assert len(out) == 1 and out[0].coasting

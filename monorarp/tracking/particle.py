@@ -13,11 +13,15 @@ from collections.abc import Sequence
 import numpy as np
 
 from monorarp.boxes import intersection, iou_matrix
-from monorarp.tracking.association import associate_iou
+from monorarp.tracking.appearance import bhattacharyya, colour_histograms
+from monorarp.tracking.association import assign, associate_iou
 from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.types import Detection, Track
 
 _MIN_SIZE = 1.0  # px: particles never shrink a box below this
+_APP_BINS = (6, 3, 3)   # appearance histogram bins (hue, saturation, value)
+_APP_RATE = 0.3         # appearance update weight, once a track has averaged 1 / _APP_RATE detections
+_REID_SIZE = 1.6        # re-identification: box heights within this ratio
 
 
 def boxes_to_cxcywh(boxes: np.ndarray) -> np.ndarray:
@@ -88,6 +92,10 @@ class ParticleTracker(BookTracker):
             (under its decision threshold): they never start a track and only extend tracks that
             no strong detection matched (a second association pass, as ByteTrack's).
         box_output: ``"detection"`` or ``"mean"`` (see module docstring).
+        reid_distance: re-identify a lost track with a new detection whose colour appearance is
+            within this Bhattacharyya distance of the track's and whose box is near its last one
+            (docs/tracking.md, re-identification by appearance); ``None``: off.
+        reid_gate: the re-identification's reach: centres at most this many box widths apart.
         seed: RNG seed (results are deterministic for a given seed).
     """
 
@@ -98,7 +106,8 @@ class ParticleTracker(BookTracker):
                  meas_noise: float = 0.05, min_iou: float = 0.2, min_hits: int = 2, max_coast: int = 10,
                  min_score: float = 0.0, box_output: str = "detection", seed: int = 0, max_lost: int = 60,
                  vel_window: int = 10, edge_px: float = 4.0, occluded_cover: float = 0.9,
-                 duplicate_cover: float = 0.5, spawn_iou: float = 0.5) -> None:
+                 duplicate_cover: float = 0.5, spawn_iou: float = 0.5, reid_distance: float | None = 0.5,
+                 reid_gate: float = 2.5) -> None:
         if n_particles < 1:
             raise ValueError(f"n_particles must be >= 1, got {n_particles}")
         if box_output not in ("detection", "mean"):
@@ -108,6 +117,10 @@ class ParticleTracker(BookTracker):
                              f"got {min_hits}, {max_coast}, {max_lost}")
         if vel_window < 2:
             raise ValueError(f"vel_window must be >= 2, got {vel_window}")
+        if reid_distance is not None and not 0 < reid_distance <= 1:
+            raise ValueError(f"reid_distance must be in (0, 1] or null (off), got {reid_distance}")
+        if reid_gate <= 0:
+            raise ValueError(f"reid_gate must be > 0, got {reid_gate}")
         self.n_particles = int(n_particles)
         self.noise_scale = np.array([pos_noise, pos_noise, size_noise, size_noise], dtype=float)
         self.meas_noise = float(meas_noise)
@@ -122,6 +135,8 @@ class ParticleTracker(BookTracker):
         self.spawn_iou = float(spawn_iou)
         self.min_score = float(min_score)
         self.box_output = box_output
+        self.reid_distance = None if reid_distance is None else float(reid_distance)
+        self.reid_gate = float(reid_gate)
         self.seed = seed
         self.reset()
 
@@ -139,7 +154,9 @@ class ParticleTracker(BookTracker):
             weak_hit=((), bool),        # last matched detection was weak (output as coasting: no measurement)
             last_det=((4,), f),         # last matched detection box (x1, y1, x2, y2)
             hist=((w, 4), f),           # last matched detections (cxcywh), ring buffer
-            hist_t=((w,), f))           # their frame times (NaN: empty slot)
+            hist_t=((w,), f),           # their frame times (NaN: empty slot)
+            app=((int(np.prod(_APP_BINS)),), f),  # colour appearance (appearance.colour_histograms)
+            app_n=((), np.int64))       # detections it averages (0: none yet)
         self._t_last: float | None = None
 
     # ---------------------------------------------------------------- stages
@@ -172,8 +189,9 @@ class ParticleTracker(BookTracker):
         self._book.hist[rows, slot], self._book.hist_t[rows, slot] = z, self._t_last
         self._book.vel[rows] = fit_velocity(self._book.hist[rows], self._book.hist_t[rows])
 
-    def _spawn(self, z: np.ndarray, scores: np.ndarray, labels: list[str]) -> None:
-        """Start tentative tracks at detections ``z`` (cxcywh)."""
+    def _spawn(self, z: np.ndarray, scores: np.ndarray, labels: list[str],
+               app: np.ndarray | None = None, valid: np.ndarray | None = None) -> None:
+        """Start tentative tracks at detections ``z`` (cxcywh), with their appearances when known."""
         k = len(z)
         if not k:
             return
@@ -183,8 +201,63 @@ class ParticleTracker(BookTracker):
         hist = np.zeros((k, self.vel_window, 4))
         hist_t = np.full((k, self.vel_window), np.nan)
         hist[:, 0], hist_t[:, 0] = z, self._t_last                    # hit 0 -> slot 0
+        extra = {} if app is None else {"app": app, "app_n": valid.astype(np.int64)}
         self._book.add(scores, labels, particles=parts, mean=z, out=cxcywh_to_boxes(z), hits=1,
-                       last_det=cxcywh_to_boxes(z), hist=hist, hist_t=hist_t)
+                       last_det=cxcywh_to_boxes(z), hist=hist, hist_t=hist_t, **extra)
+
+    def _appearances(self, image: np.ndarray | None,
+                     det_boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Each detection's colour appearance and whether it has one (some pixel in the image);
+        None when re-identification is off or there is no colour (BGR) image."""
+        if self.reid_distance is None or image is None or image.ndim != 3 or not len(det_boxes):
+            return None
+        app = colour_histograms(image, det_boxes, _APP_BINS)
+        return app, app.any(axis=1)
+
+    def _learn_appearance(self, rows: np.ndarray, app: np.ndarray, valid: np.ndarray) -> None:
+        """Running average of the appearances of tracks ``rows`` with their detections' ``app`` (``valid`` ones)."""
+        rows, app = rows[valid], app[valid]
+        n = self._book.app_n[rows]
+        rate = np.maximum(_APP_RATE, 1.0 / (n + 1))[:, None]
+        self._book.app[rows] = (1 - rate) * self._book.app[rows] + rate * app
+        self._book.app_n[rows] = n + 1
+
+    def _reidentify(self, rows: np.ndarray, cols: np.ndarray, free: np.ndarray, det_boxes: np.ndarray,
+                    app: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pair lost tracks with the ``free`` (unmatched strong) detections by appearance.
+
+        A pair needs box heights within ``_REID_SIZE``, bottom edges within half the track's last
+        height (+2 px), centres within ``reid_gate`` box widths, and an appearance distance of at
+        most ``reid_distance``; the pairs minimise the total distance. A re-identified track forgets
+        the motion it had before: its particles restart at the detection, with no velocity history.
+        Returns ``(rows, cols, free)`` with the pairs added.
+        """
+        book = self._book
+        taken = np.zeros(self.n_tracks, dtype=bool)
+        taken[rows] = True
+        lost = np.flatnonzero(~taken & (book.misses > self.max_coast) & (book.app_n > 0))
+        if not len(lost) or not len(free):
+            return rows, cols, free
+        last, det = book.last_det[lost], det_boxes[free]
+        lw, lh = last[:, 2] - last[:, 0], last[:, 3] - last[:, 1]
+        dw, dh = det[:, 2] - det[:, 0], det[:, 3] - det[:, 1]
+        ratio = dh[None, :] / np.maximum(lh[:, None], 1e-9)
+        dx = np.abs((det[None, :, 0] + det[None, :, 2]) - (last[:, None, 0] + last[:, None, 2])) / 2
+        near = ((ratio <= _REID_SIZE) & (ratio >= 1 / _REID_SIZE)
+                & (np.abs(det[None, :, 3] - last[:, None, 3]) <= 0.5 * lh[:, None] + 2.0)
+                & (dx <= self.reid_gate * np.maximum(lw[:, None], dw[None, :])))
+        cost = np.where(near, bhattacharyya(book.app[lost], app[free]), np.inf)
+        m, _, _ = assign(cost, self.reid_distance)
+        if not len(m):
+            return rows, cols, free
+        t, d = lost[m[:, 0]], free[m[:, 1]]
+        z = boxes_to_cxcywh(det_boxes[d])
+        sizes = np.maximum(z[:, [2, 3, 2, 3]], _MIN_SIZE) * self.meas_noise
+        parts = z[:, None, :] + self._rng.standard_normal((len(t), self.n_particles, 4)) * sizes[:, None, :]
+        parts[..., 2:] = np.maximum(parts[..., 2:], _MIN_SIZE)
+        book.particles[t], book.mean[t], book.vel[t] = parts, z, 0.0
+        book.hist_t[t] = np.nan
+        return np.concatenate([rows, t]), np.concatenate([cols, d]), np.setdiff1d(free, d)
 
     def _leaving(self, width: int) -> np.ndarray:
         """Tracks whose last detection touched the left/right image border while moving outwards."""
@@ -252,6 +325,9 @@ class ParticleTracker(BookTracker):
         pred = cxcywh_to_boxes(book.mean)
         strong = (det_scores >= self.min_score) & ~np.array([d.weak for d in detections], dtype=bool)
         rows, cols, un_d = self._associate(pred, det_boxes, strong)
+        looks = self._appearances(image, det_boxes)
+        if looks is not None:
+            rows, cols, un_d = self._reidentify(rows, cols, un_d, det_boxes, looks[0])
         matched = np.zeros(self.n_tracks, dtype=bool)
         matched[rows] = True
         if len(rows):
@@ -262,6 +338,8 @@ class ParticleTracker(BookTracker):
             book.last_det[rows] = det_boxes[cols]
             book.weak_hit[rows] = ~strong[cols]
             book.hit(rows, det_scores[cols], [detections[c].label for c in cols])
+            if looks is not None:
+                self._learn_appearance(rows, looks[0][cols], looks[1][cols] & strong[cols])
         coast = ~matched
         book.out[coast] = cxcywh_to_boxes(book.mean[coast])
         book.hits[matched] += 1
@@ -278,7 +356,8 @@ class ParticleTracker(BookTracker):
             # A second box on a vehicle a track already holds this frame starts no track.
             new = new[iou_matrix(det_boxes[new], det_boxes[cols]).max(axis=1) < self.spawn_iou]
         if len(new):
-            self._spawn(boxes_to_cxcywh(det_boxes[new]), det_scores[new], [detections[i].label for i in new])
+            self._spawn(boxes_to_cxcywh(det_boxes[new]), det_scores[new], [detections[i].label for i in new],
+                        *((looks[0][new], looks[1][new]) if looks is not None else ()))
 
         show = ((book.hits >= self.min_hits) | book.early(self.min_hits)) & (book.misses <= self.max_coast)
         if image is not None and self.edge_px >= 0:
@@ -286,5 +365,9 @@ class ParticleTracker(BookTracker):
         hide = show & (book.misses > 0)
         if hide.any() and n_det:
             show[hide] = ~self._covered(book.out[hide], det_boxes)
+        weak_only = show & (book.misses == 0) & book.weak_hit
+        if weak_only.any() and strong.any():
+            # A track only a weak box supports is judged against the strong boxes (not its own).
+            show[weak_only] = ~self._covered(book.out[weak_only], det_boxes[strong])
         rows = np.flatnonzero(show)
         return book.tracks(rows, book.out[rows], coasting=(book.misses[rows] > 0) | book.weak_hit[rows])
