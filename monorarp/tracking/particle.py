@@ -189,15 +189,20 @@ class ParticleTracker(BookTracker):
         self._book.hist[rows, slot], self._book.hist_t[rows, slot] = z, self._t_last
         self._book.vel[rows] = fit_velocity(self._book.hist[rows], self._book.hist_t[rows])
 
+    def _particles_at(self, z: np.ndarray) -> np.ndarray:
+        """(K, N, 4) fresh particles around boxes ``z`` (K, 4) cxcywh: std ``meas_noise`` x size."""
+        sizes = np.maximum(z[:, [2, 3, 2, 3]], _MIN_SIZE) * self.meas_noise
+        parts = z[:, None, :] + self._rng.standard_normal((len(z), self.n_particles, 4)) * sizes[:, None, :]
+        parts[..., 2:] = np.maximum(parts[..., 2:], _MIN_SIZE)
+        return parts
+
     def _spawn(self, z: np.ndarray, scores: np.ndarray, labels: list[str],
                app: np.ndarray | None = None, valid: np.ndarray | None = None) -> None:
         """Start tentative tracks at detections ``z`` (cxcywh), with their appearances when known."""
         k = len(z)
         if not k:
             return
-        sizes = np.maximum(z[:, [2, 3, 2, 3]], _MIN_SIZE) * self.meas_noise
-        parts = z[:, None, :] + self._rng.standard_normal((k, self.n_particles, 4)) * sizes[:, None, :]
-        parts[..., 2:] = np.maximum(parts[..., 2:], _MIN_SIZE)
+        parts = self._particles_at(z)
         hist = np.zeros((k, self.vel_window, 4))
         hist_t = np.full((k, self.vel_window), np.nan)
         hist[:, 0], hist_t[:, 0] = z, self._t_last                    # hit 0 -> slot 0
@@ -252,10 +257,7 @@ class ParticleTracker(BookTracker):
             return rows, cols, free
         t, d = lost[m[:, 0]], free[m[:, 1]]
         z = boxes_to_cxcywh(det_boxes[d])
-        sizes = np.maximum(z[:, [2, 3, 2, 3]], _MIN_SIZE) * self.meas_noise
-        parts = z[:, None, :] + self._rng.standard_normal((len(t), self.n_particles, 4)) * sizes[:, None, :]
-        parts[..., 2:] = np.maximum(parts[..., 2:], _MIN_SIZE)
-        book.particles[t], book.mean[t], book.vel[t] = parts, z, 0.0
+        book.particles[t], book.mean[t], book.vel[t] = self._particles_at(z), z, 0.0
         book.hist_t[t] = np.nan
         return np.concatenate([rows, t]), np.concatenate([cols, d]), np.setdiff1d(free, d)
 
