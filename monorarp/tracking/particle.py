@@ -13,13 +13,12 @@ from collections.abc import Sequence
 import numpy as np
 
 from monorarp.boxes import intersection, iou_matrix
-from monorarp.tracking.appearance import bhattacharyya, colour_histograms
+from monorarp.tracking.appearance import BINS, bhattacharyya, colour_histograms
 from monorarp.tracking.association import assign, associate_iou
 from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.types import Detection, Track
 
 _MIN_SIZE = 1.0  # px: particles never shrink a box below this
-_APP_BINS = (6, 3, 3)   # appearance histogram bins (hue, saturation, value)
 _APP_RATE = 0.3         # appearance update weight, once a track has averaged 1 / _APP_RATE detections
 _REID_SIZE = 1.6        # re-identification: box heights within this ratio
 
@@ -155,7 +154,7 @@ class ParticleTracker(BookTracker):
             last_det=((4,), f),         # last matched detection box (x1, y1, x2, y2)
             hist=((w, 4), f),           # last matched detections (cxcywh), ring buffer
             hist_t=((w,), f),           # their frame times (NaN: empty slot)
-            app=((int(np.prod(_APP_BINS)),), f),  # colour appearance (appearance.colour_histograms)
+            app=((int(np.prod(BINS)),), f),  # colour appearance (appearance.colour_histograms)
             app_n=((), np.int64))       # detections it averages (0: none yet)
         self._t_last: float | None = None
 
@@ -216,7 +215,7 @@ class ParticleTracker(BookTracker):
         None when re-identification is off or there is no colour (BGR) image."""
         if self.reid_distance is None or image is None or image.ndim != 3 or not len(det_boxes):
             return None
-        app = colour_histograms(image, det_boxes, _APP_BINS)
+        app = colour_histograms(image, det_boxes)
         return app, app.any(axis=1)
 
     def _learn_appearance(self, rows: np.ndarray, app: np.ndarray, valid: np.ndarray) -> None:
@@ -312,9 +311,9 @@ class ParticleTracker(BookTracker):
     def update(self, image: np.ndarray | None, detections: Sequence[Detection], t: float) -> list[Track]:
         """Advance to frame time ``t`` (s) with this frame's detections; return the output tracks.
 
-        The tracker works on detections only; ``image`` (Table I's interface, shared
-        with image-based trackers) gives just its width, for the leaving-the-view
-        rule (``None``: that rule is off).
+        The tracker follows detections; ``image`` (Table I's interface, shared with
+        image-based trackers) gives its width, for the leaving-the-view rule, and the
+        detections' colours, for re-identification (``None``: both are off).
         """
         dt = 0.0 if self._t_last is None else float(t) - self._t_last
         self._t_last = float(t)
