@@ -195,6 +195,7 @@ def test_evaluate_small_run(tmp_path):
     t = m["tracking"]              # 3 counted object-frames, all matched; one FP track (13)
     assert t["objects"] == 3 and t["misses"] == 0 and t["false_positives"] == 1 and t["id_switches"] == 0
     assert t["mota"] == pytest.approx(1 - 1 / 3)
+    assert t["by_range"] is None   # without a camera an unmatched track has no range bin
     assert m["runtime_ms"]["total"] == pytest.approx(3.2) and m["fps"] == pytest.approx(4.0)
     assert len(recs) == 3 + 2 + 1   # every GT object, plus the unmatched track 13
 
@@ -210,6 +211,39 @@ def test_evaluate_small_run(tmp_path):
     assert (back[3].registered_rate, back[3].registered_rate_std) == (0.11, 0.02)
     assert math.isnan(back[0].a_y_est) and math.isnan(back[0].age_s)                 # none estimated
     assert math.isnan(back[4].d_y_est) and back[4].counted is False     # occluded object, no state
+
+
+def test_tracking_by_range_splits_the_run_into_bins_by_hand():
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, pitch_rad=math.radians(2))
+
+    def box(d, x=300):                   # a box standing on the ground d m ahead
+        v = cam.project_ego(np.array([0.0, d, -1.3]))[1]
+        return (x, v - 10, x + 20, v)
+
+    near, far = box(15.0, 100), box(41.0, 300)
+    low = (far[0], far[1] + 2, far[2], far[3] + 2)     # IoU 0.67 with the far car, bottom edge at ~35 m
+    truths = [_truth(k, [_obj(1, near, 15.0), _obj(2, far, 41.0)]) for k in range(4)]
+    tracks = [
+        [Track(10, near), Track(20, low)],               # a matched track counts in its object's bin
+        [Track(10, near), Track(20, low), Track(30, box(30.0, 500))],    # a phantom claimed at 30 m
+        [Track(11, near), Track(40, box(100.0, 500))],                   # id switch; far car missed; 100 m: set aside
+        [Track(11, near)],                                               # far car missed
+    ]
+    results = [_result(k, trs, {}, {}, []) for k, trs in enumerate(tracks)]
+    m, _ = evaluate(truths, results, EvalConfig(), camera=cam)
+    t, bins = m["tracking"], m["tracking"]["by_range"]
+    assert (t["objects"], t["misses"], t["false_positives"], t["id_switches"]) == (8, 2, 1, 1)
+    # 10-20 m: object 1 in 4 frames, tracks 10 then 11 -> one switch; IDF1 2*2 / (2*2 + 2 + 2)
+    assert (bins["10-20"]["objects"], bins["10-20"]["misses"], bins["10-20"]["id_switches"]) == (4, 0, 1)
+    assert bins["10-20"]["mota"] == pytest.approx(0.75) and bins["10-20"]["idf1"] == pytest.approx(0.5)
+    # 40-80 m: object 2 found twice, missed twice; IDF1 2*2 / (2*2 + 0 + 2)
+    assert (bins["40-80"]["objects"], bins["40-80"]["misses"], bins["40-80"]["false_positives"]) == (4, 2, 0)
+    assert bins["40-80"]["mota"] == pytest.approx(0.5) and bins["40-80"]["idf1"] == pytest.approx(2 / 3)
+    # 20-40 m: no object, the phantom's one false positive; MOTA undefined
+    assert (bins["20-40"]["objects"], bins["20-40"]["false_positives"]) == (0, 1)
+    assert math.isnan(bins["20-40"]["mota"]) and bins["0-10"]["objects"] == 0
+    for key in ("objects", "misses", "false_positives"):
+        assert sum(b[key] for b in bins.values()) == t[key]
 
 
 def test_evaluate_rejects_misaligned_frames():

@@ -30,7 +30,9 @@ NAN = float("nan")
 #: Keys of ``metrics["tracking"]`` (all null when tracking is not scored).
 TRACKING_KEYS = ("mota", "motp", "idf1", "idp", "idr", "id_switches", "false_positives", "misses", "objects",
                  "unique_objects", "fragmentations", "mostly_tracked", "partially_tracked", "mostly_lost",
-                 "precision", "recall", "hota", "deta", "assa", "loca", "hota_by_alpha")
+                 "precision", "recall", "hota", "deta", "assa", "loca", "hota_by_alpha", "by_range")
+#: What each range bin of ``tracking.by_range`` is given (motmetrics names).
+BIN_METRICS = ("mota", "idf1", "num_switches", "num_false_positives", "num_misses", "num_objects")
 STAGES = ("detector", "ego_speed", "tracker", "state", "risk", "warning", "total")
 
 
@@ -59,13 +61,17 @@ def counted_mask(objects: Sequence[ObjectTruth], cfg: EvalConfig) -> np.ndarray:
                      and o.d_long <= cfg.max_range_m for o in objects], dtype=bool)
 
 
+def ground_range(boxes: np.ndarray, camera: CameraModel) -> np.ndarray:
+    """(N,) forward distance (m) at which each box's bottom edge meets the ground; NaN at or above the horizon."""
+    b = as_boxes(boxes)
+    return camera.ground_point_from_pixel(np.full(len(b), camera.cx), b[:, 3])[:, 1]
+
+
 def out_of_range(boxes: np.ndarray, camera: CameraModel | None, max_range_m: float) -> np.ndarray | None:
     """Boxes whose bottom edge meets the ground beyond ``max_range_m`` (or never); None without a camera."""
     if camera is None:
         return None
-    b = as_boxes(boxes)
-    ground = camera.ground_point_from_pixel(np.full(len(b), camera.cx), b[:, 3])[:, 1]
-    return ~(ground <= max_range_m)
+    return ~(ground_range(boxes, camera) <= max_range_m)
 
 
 def frame_records(truth: FrameTruth, result: FrameResult, cfg: EvalConfig,
@@ -167,8 +173,12 @@ def detection_tracking_metrics(truths: Sequence[FrameTruth], results: Sequence[F
     """Detection precision/recall at ``min_iou`` and motmetrics tracking metrics.
 
     ``tracking=False`` (independent images, e.g. a KITTI object dataset): every tracking value is null.
+    ``tracking.by_range`` (with a camera): the CLEAR MOT and identity metrics of each range bin alone
+    (:func:`range_bins_of`); null without a camera, which places unmatched tracks.
     """
     mot = MotScorer(cfg.min_iou) if tracking else None
+    bins = {name: MotScorer(cfg.min_iou, hota=False) for name in algo.RANGE_BINS} \
+        if tracking and camera is not None else {}
     tp = n_pred = n_true = 0
     for truth, res in zip(truths, results):
         objs = truth.objects
@@ -182,19 +192,23 @@ def detection_tracking_metrics(truths: Sequence[FrameTruth], results: Sequence[F
         n_true += int(counted.sum())
         if mot is None:
             continue
+        gt_ids, tr_ids = [o.id for o in objs], [t.id for t in res.tracks]
         tr_boxes = as_boxes([t.box for t in res.tracks])
-        mot.update([o.id for o in objs], gt_boxes, counted, [t.id for t in res.tracks], tr_boxes,
-                   frame=truth.frame, ignore_cover=cfg.ignore_cover,
-                   track_out_of_range=out_of_range(tr_boxes, camera, cfg.max_range_m))
+        split = mot.update(gt_ids, gt_boxes, counted, tr_ids, tr_boxes, frame=truth.frame,
+                           ignore_cover=cfg.ignore_cover, track_out_of_range=out_of_range(tr_boxes, camera, cfg.max_range_m))
+        if bins:
+            gt_bin, tr_bin = range_bins_of(objs, counted, tr_boxes, camera, split)
+            for name, scorer in bins.items():
+                g, e = gt_bin == name, tr_bin == name
+                scorer.add([i for i, k in zip(gt_ids, g) if k], gt_boxes[g], [i for i, k in zip(tr_ids, e) if k],
+                           tr_boxes[e], frame=truth.frame)
     detection = algo.precision_recall(tp, n_pred, n_true)
     detection["min_iou"] = cfg.min_iou
     if mot is None:
         return detection, dict.fromkeys(TRACKING_KEYS)
-    # Undefined ratios (e.g. MOTA with no counted object is -inf in motmetrics) become nan -> null.
-    m = {k: (v if np.isfinite(v) else NAN) for k, v in mot.compute().items()}
+    m = _finite(mot.compute())
     tracking = {"mota": m["mota"], "motp": m["motp"], "idf1": m["idf1"], "idp": m["idp"], "idr": m["idr"],
-                "id_switches": int(m["num_switches"]), "false_positives": int(m["num_false_positives"]),
-                "misses": int(m["num_misses"]), "objects": int(m["num_objects"]),
+                **_counts(m),
                 "unique_objects": int(m["num_unique_objects"]), "fragmentations": int(m["num_fragmentations"]),
                 "mostly_tracked": int(m["mostly_tracked"]), "partially_tracked": int(m["partially_tracked"]),
                 "mostly_lost": int(m["mostly_lost"]), "precision": m["precision"], "recall": m["recall"]}
@@ -202,7 +216,41 @@ def detection_tracking_metrics(truths: Sequence[FrameTruth], results: Sequence[F
     nothing = not (h.tp + h.fn + h.fp).any()     # no counted object and no track: null, as MOTA (TrackEval says 0)
     tracking.update({k: NAN if nothing else v for k, v in h.summary().items() if k in ("hota", "deta", "assa", "loca")})
     tracking["hota_by_alpha"] = h.to_dict()      # per-threshold statistics: sequences combine exactly (hota.combine)
+    tracking["by_range"] = {name: {"mota": b["mota"], "idf1": b["idf1"], **_counts(b)}
+                            for name, b in ((n, _finite(s.compute(BIN_METRICS))) for n, s in bins.items())} \
+        if bins else None
     return detection, tracking
+
+
+def range_bins_of(objects: Sequence[ObjectTruth], counted: np.ndarray, tr_boxes: np.ndarray, camera: CameraModel,
+                  split: tuple[list[tuple[int, int, float]], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The range bin (:data:`algo.RANGE_BINS` label, None: no bin) of each object and each track of a frame.
+
+    A counted object is in the bin of its true ``d_long``. A track matched (IoU >= ``min_iou``) to a
+    counted object is in that object's bin; any other track the whole-run scoring keeps is in the bin
+    of its own claim, the ground range of its bottom edge (nuScenes' per-distance convention:
+    a false positive is a vehicle claimed at that range). Tracks the whole run sets aside are in no bin.
+    ``split``: the whole run's (matches, set-aside mask) of the frame (:meth:`MotScorer.update`).
+    So each counted object, miss and false positive of the run falls in one bin.
+    """
+    gt_bin = algo.bin_labels([o.d_long for o in objects])
+    gt_bin[~np.asarray(counted, dtype=bool)] = None
+    tr_bin = algo.bin_labels(ground_range(tr_boxes, camera))
+    kept, set_aside = split
+    for g, e, _ in kept:
+        tr_bin[e] = gt_bin[g]
+    tr_bin[set_aside] = None
+    return gt_bin, tr_bin
+
+
+def _finite(m: Mapping[str, float]) -> dict[str, float]:
+    """Undefined ratios (e.g. MOTA with no counted object is -inf in motmetrics) become nan -> null."""
+    return {k: (v if np.isfinite(v) else NAN) for k, v in m.items()}
+
+
+def _counts(m: Mapping[str, float]) -> dict[str, int]:
+    return {"id_switches": int(m["num_switches"]), "false_positives": int(m["num_false_positives"]),
+            "misses": int(m["num_misses"]), "objects": int(m["num_objects"])}
 
 
 def runtime_metrics(results: Sequence[FrameResult], wall_time_s: float | None) -> tuple[dict, float]:

@@ -40,39 +40,50 @@ METRICS = ("num_frames", "mota", "motp", "idf1", "idp", "idr", "num_switches", "
 class MotScorer:
     """Feeds frames into a ``MOTAccumulator``; :meth:`compute` returns the metrics."""
 
-    def __init__(self, min_iou: float = MIN_IOU) -> None:
+    def __init__(self, min_iou: float = MIN_IOU, hota: bool = True) -> None:
+        """``hota=False``: CLEAR MOT and identity metrics only (:meth:`hota_result` is unavailable)."""
         self.min_iou = min_iou
         self.acc = mm.MOTAccumulator(auto_id=False)
-        self.hota = HotaAccumulator()
+        self.hota = HotaAccumulator() if hota else None
         self._frame = 0
 
     def update(self, gt_ids: Sequence[int], gt_boxes, counted: Sequence[bool],
                track_ids: Sequence[int], track_boxes, frame: int | None = None,
-               ignore_cover: float | None = None, track_out_of_range: Sequence[bool] | None = None) -> None:
+               ignore_cover: float | None = None,
+               track_out_of_range: Sequence[bool] | None = None) -> tuple[list[tuple[int, int, float]], np.ndarray]:
         """One frame: GT ids/boxes with their counted mask, track ids/boxes.
 
         ``ignore_cover``/``track_out_of_range``: see :func:`harness.scoring.match.split_ignored`.
+        Returns that split: (Hungarian matches with counted objects, mask of the tracks set aside).
         """
         gt_boxes, track_boxes = as_boxes(gt_boxes), as_boxes(track_boxes)
         counted = np.asarray(counted, dtype=bool).reshape(-1)
-        _, ignored_tracks = split_ignored(gt_boxes, counted, track_boxes, self.min_iou, ignore_cover,
-                                          track_out_of_range)
-        keep = ~ignored_tracks
-        g_ids = [int(i) for i, c in zip(gt_ids, counted) if c]
-        h_ids = [int(i) for i, k in zip(track_ids, keep) if k]
-        iou = iou_matrix(gt_boxes[counted], track_boxes[keep])
+        split = split_ignored(gt_boxes, counted, track_boxes, self.min_iou, ignore_cover, track_out_of_range)
+        keep = ~split[1]
+        self.add([i for i, c in zip(gt_ids, counted) if c], gt_boxes[counted],
+                 [i for i, k in zip(track_ids, keep) if k], track_boxes[keep], frame)
+        return split
+
+    def add(self, gt_ids: Sequence[int], gt_boxes, track_ids: Sequence[int], track_boxes,
+            frame: int | None = None) -> None:
+        """One frame whose objects all count and whose tracks are all scored (no ignore rule)."""
+        g_ids, h_ids = [int(i) for i in gt_ids], [int(i) for i in track_ids]
+        iou = iou_matrix(as_boxes(gt_boxes), as_boxes(track_boxes))
         dist = np.where(iou >= self.min_iou, 1.0 - iou, np.nan)
         fid = self._frame if frame is None else int(frame)
         self.acc.update(g_ids, h_ids, dist, frameid=fid)
-        self.hota.update(g_ids, h_ids, iou)
+        if self.hota is not None:
+            self.hota.update(g_ids, h_ids, iou)
         self._frame = fid + 1
 
-    def compute(self) -> dict[str, float]:
-        """The :data:`METRICS` as plain floats (nan when undefined, e.g. MOTA with no objects)."""
+    def compute(self, metrics: Sequence[str] = METRICS) -> dict[str, float]:
+        """``metrics`` (default :data:`METRICS`) as plain floats (nan when undefined, e.g. MOTA with no objects)."""
         mh = mm.metrics.create()
-        df = mh.compute(self.acc, metrics=list(METRICS), name="run")
-        return {k: float(df.loc["run", k]) for k in METRICS}
+        df = mh.compute(self.acc, metrics=list(metrics), name="run")
+        return {k: float(df.loc["run", k]) for k in metrics}
 
     def hota_result(self) -> HotaResult:
         """HOTA of the frames fed so far (:func:`harness.scoring.hota.hota`)."""
+        if self.hota is None:
+            raise ValueError("this scorer was made with hota=False")
         return self.hota.compute()

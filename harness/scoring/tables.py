@@ -74,6 +74,10 @@ def summary_table(metrics: Mapping) -> str:
         if "hota" in t else ""
     out.append(f"tracking: MOTA {_num(t['mota'], '{:.3f}')}, IDF1 {_num(t['idf1'], '{:.3f}')}{hota}, id switches "
                f"{t['id_switches']}, FP {t['false_positives']}, misses {t['misses']} of {t['objects']}")
+    if t.get("by_range"):
+        out.append("  by range, MOTA/IDF1 (objects): " + "; ".join(
+            f"{name} m {_num(b['mota'], '{:.3f}')}/{_num(b['idf1'], '{:.3f}')} ({b['objects']})"
+            for name, b in t["by_range"].items()))
     out.append(f"detection @IoU {det['min_iou']:g}: precision {_num(det['precision'], '{:.3f}')}, recall "
                f"{_num(det['recall'], '{:.3f}')}")
     out += ["", table_ii(metrics)]
