@@ -110,6 +110,12 @@ def test_output_files(bench, capsys):
     md = (out / "trackers.md").read_text()
     assert "TABLE III" in md and "| MOTA |" in md and "| HOTA |" in md
     assert all(f"| {n} |" in md for n in res["trackers"])
+    # the lead (14 m) and the left car (20 m) each in their range bin; pooled over scenarios
+    by = res["trackers"]["particle"]["by_range"]
+    assert list(by) == ["0-10", "10-20", "20-40", "40-80"] and by["10-20"]["objects"] > 0
+    assert sum(b["objects"] for b in by.values()) == res["trackers"]["particle"]["objects"]
+    assert by["10-20"]["mota"] == pytest.approx(1.0) and by["0-10"]["objects"] == 0
+    assert "By range of the true distance" in md and "| 10-20 m |" in md
 
 
 def test_unknown_tracker_refused_before_rendering(tmp_path, monkeypatch, capsys):
@@ -128,6 +134,33 @@ def test_unknown_tracker_refused_before_rendering(tmp_path, monkeypatch, capsys)
                "--detector", "oracle", "--out", str(tmp_path / "out")])
     assert rc == 2 and "missing.yaml" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_pooled_by_range_is_each_bins_motmetrics_overall():
+    """Each range bin pools like the whole run: motmetrics' OVERALL of that bin's sequences."""
+    from harness.bench.trackers import pooled_by_range
+
+    rng = np.random.default_rng(1)
+    names = ["mota", "idf1", "idr", "num_switches", "num_false_positives", "num_misses", "num_objects"]
+    keys = ["mota", "idf1", "idr", "id_switches", "false_positives", "misses", "objects"]
+    bins = {"near": [], "far": []}
+    for b in bins:
+        for _ in range(2):
+            acc = mm.MOTAccumulator(auto_id=True)
+            for _ in range(20):
+                hyp = list(dict.fromkeys(int(h) for h in rng.integers(0, 5, int(rng.integers(1, 4)))))
+                dist = rng.uniform(0, 1, (3, len(hyp)))
+                dist[dist > 0.6] = np.nan
+                acc.update([0, 1, 2], hyp, dist)
+            bins[b].append(acc)
+    mh = mm.metrics.create()
+    dfs = {b: mh.compute_many(a, metrics=names, names=["s0", "s1"], generate_overall=True) for b, a in bins.items()}
+    sections = [{"by_range": {b: dict(zip(keys, dfs[b].loc[s, names])) for b in bins}} for s in ("s0", "s1")]
+    pooled = pooled_by_range(sections)
+    for b in bins:
+        assert pooled[b]["mota"] == pytest.approx(dfs[b].loc["OVERALL", "mota"], abs=1e-12)
+        assert pooled[b]["idf1"] == pytest.approx(dfs[b].loc["OVERALL", "idf1"], abs=1e-12)
+    assert pooled_by_range([sections[0], {"by_range": None}]) is None
 
 
 def test_pooled_tracking_matches_motmetrics_overall():

@@ -139,7 +139,7 @@ def run_tracker(seq: CachedSequence, tracker: ComponentConfig, state: ComponentC
                                                               "state": (t2 - t1) * 1e3, "risk": (t3 - t2) * 1e3}))
     for r in results:
         r.timings_ms["total"] = sum(r.timings_ms.values())
-    metrics, records = evaluate(seq.truths, results, eval_config,
+    metrics, records = evaluate(seq.truths, results, eval_config, camera=seq.camera,
                                 run_info={"scenario": seq.name, "components": {"tracker": tracker.name}})
     return TrackerRun(metrics=metrics, records=records, tracker_ms=tracker_ms)
 
@@ -186,7 +186,17 @@ def _summary(runs: Sequence[TrackerRun], detector_ms: np.ndarray, cfg: EvalConfi
             **pooled_tracking([r.metrics["tracking"] for r in runs]),
             "distance_rel_err_median": dist["rel_err_median"], "distance_abs_err_median_m": dist["abs_err_median_m"],
             "distance_pairs": dist["count"],
-            "tracks_per_frame": (sum(r.metrics["counts"]["track_frames"] for r in runs) / max(1, tr_ms.size))}
+            "tracks_per_frame": (sum(r.metrics["counts"]["track_frames"] for r in runs) / max(1, tr_ms.size)),
+            "by_range": pooled_by_range([r.metrics["tracking"] for r in runs])}
+
+
+def pooled_by_range(tracking: Sequence[Mapping]) -> dict | None:
+    """:func:`pooled_tracking` of each range bin (``tracking.by_range``); None when a section lacks it."""
+    if not tracking or not all(t.get("by_range") for t in tracking):
+        return None
+    keep = ("mota", "idf1", "id_switches", "false_positives", "misses", "objects")
+    return {name: {k: v for k, v in pooled_tracking([t["by_range"][name] for t in tracking]).items() if k in keep}
+            for name in tracking[0]["by_range"]}
 
 
 # ------------------------------------------------------------------------------------ the bench
@@ -287,6 +297,14 @@ def table_iii(result: Mapping) -> str:
               f"{cfg['scoring']['min_iou']:g}; HOTA: mean over IoU thresholds 0.05..0.95 (TrackEval's); all pooled "
               f"over scenarios. Distance error: median |d_y - d_long| / d_long "
               f"({cfg['state']['name']} state estimator) over matched counted objects within 0-80 m."]
+    ranged = {name: s["by_range"] for name, s in result["trackers"].items() if s.get("by_range")}
+    if ranged:
+        bins = list(next(iter(ranged.values())))
+        lines += ["", "By range of the true distance (each bin scored alone: metrics.md), MOTA / IDF1 (objects):", "",
+                  "| Tracker | " + " | ".join(f"{b} m" for b in bins) + " |", "|---|" + "---:|" * len(bins)]
+        for name, by in ranged.items():
+            lines.append(f"| {name} | " + " | ".join(
+                f"{_f(by[b]['mota'], '{:.3f}')} / {_f(by[b]['idf1'], '{:.3f}')} ({by[b]['objects']})" for b in bins) + " |")
     per = result.get("per_scenario", {})
     if len(per) > 1:
         lines += ["", "Per scenario:", "", "| Scenario | Tracker | tracker ms (mean) | MOTA | IDF1 | HOTA | ID switches "

@@ -32,7 +32,7 @@ TRACKING_KEYS = ("mota", "motp", "idf1", "idp", "idr", "id_switches", "false_pos
                  "unique_objects", "fragmentations", "mostly_tracked", "partially_tracked", "mostly_lost",
                  "precision", "recall", "hota", "deta", "assa", "loca", "hota_by_alpha", "by_range")
 #: What each range bin of ``tracking.by_range`` is given (motmetrics names).
-BIN_METRICS = ("mota", "idf1", "num_switches", "num_false_positives", "num_misses", "num_objects")
+BIN_METRICS = ("mota", "idf1", "idr", "num_switches", "num_false_positives", "num_misses", "num_objects")
 STAGES = ("detector", "ego_speed", "tracker", "state", "risk", "warning", "total")
 
 
@@ -216,7 +216,7 @@ def detection_tracking_metrics(truths: Sequence[FrameTruth], results: Sequence[F
     nothing = not (h.tp + h.fn + h.fp).any()     # no counted object and no track: null, as MOTA (TrackEval says 0)
     tracking.update({k: NAN if nothing else v for k, v in h.summary().items() if k in ("hota", "deta", "assa", "loca")})
     tracking["hota_by_alpha"] = h.to_dict()      # per-threshold statistics: sequences combine exactly (hota.combine)
-    tracking["by_range"] = {name: {"mota": b["mota"], "idf1": b["idf1"], **_counts(b)}
+    tracking["by_range"] = {name: {"mota": b["mota"], "idf1": b["idf1"], "idr": b["idr"], **_counts(b)}
                             for name, b in ((n, _finite(s.compute(BIN_METRICS))) for n, s in bins.items())} \
         if bins else None
     return detection, tracking
