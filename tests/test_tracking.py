@@ -348,6 +348,23 @@ def test_reidentified_track_forgets_its_old_motion():
     assert outs[56][0].box == pytest.approx(tuple(box_at(90, 150, 30, 20)), abs=2.0)
 
 
+def test_lost_track_found_again_by_overlap_forgets_its_old_motion():
+    """A far car's box shrinks 0.5 px/frame while tracked (a fitted size velocity), then it is unseen
+    for 30 frames, so its lost track's predicted box keeps shrinking (to about half). Detected again
+    where it is, overlapping that prediction (IoU ~0.5, no image: not re-identification), the track
+    restarts at the detection: coasting on, its box stays on the car. Before, the particles stayed
+    around the shrunken prediction and the coasting box was 20 px tall, not 30 (dense_traffic seed 2,
+    car 23, frames 246-256)."""
+    def seen(k):                                       # bottom edge fixed at y 200
+        h = 40.0 - 0.5 * min(k, 20)
+        return box_at(150, 200 - h / 2, 30, h)
+    frames = [({1: seen(k)}, [seen(k)]) for k in range(20)] + [({}, [])] * 30
+    frames += [({1: seen(20)}, [seen(20)])] + [({1: seen(20)}, [])] * 6
+    _, outs = run(ParticleTracker(), frames)
+    assert [tr.id for tr in outs[50]] == [0] and all(tr.coasting for tr in outs[56])
+    assert outs[56][0].box == pytest.approx(tuple(seen(20)), abs=2.0)
+
+
 def test_track_only_a_weak_box_supports_is_not_output_on_a_nearer_detected_vehicle():
     """A box on a near car's window is tracked while strong; when it turns weak, its track is judged as
     a coasting one (not output: it lies inside the near car's strong, nearer box)."""

@@ -255,10 +255,16 @@ class ParticleTracker(BookTracker):
         if not len(m):
             return rows, cols, free
         t, d = lost[m[:, 0]], free[m[:, 1]]
-        z = boxes_to_cxcywh(det_boxes[d])
-        book.particles[t], book.mean[t], book.vel[t] = self._particles_at(z), z, 0.0
-        book.hist_t[t] = np.nan
+        self._restart(t, det_boxes[d])
         return np.concatenate([rows, t]), np.concatenate([cols, d]), np.setdiff1d(free, d)
+
+    def _restart(self, rows: np.ndarray, boxes: np.ndarray) -> None:
+        """Tracks ``rows`` found again after being lost forget their motion: particles restart at
+        ``boxes`` (x1, y1, x2, y2), with no velocity and no velocity history."""
+        z = boxes_to_cxcywh(boxes)
+        book = self._book
+        book.particles[rows], book.mean[rows], book.vel[rows] = self._particles_at(z), z, 0.0
+        book.hist_t[rows] = np.nan
 
     def _leaving(self, width: int) -> np.ndarray:
         """Tracks whose last detection touched the left/right image border while moving outwards."""
@@ -326,6 +332,9 @@ class ParticleTracker(BookTracker):
         pred = cxcywh_to_boxes(book.mean)
         strong = (det_scores >= self.min_score) & ~np.array([d.weak for d in detections], dtype=bool)
         rows, cols, un_d = self._associate(pred, det_boxes, strong)
+        back = book.misses[rows] > self.max_coast      # lost tracks a detection overlaps again
+        if back.any():
+            self._restart(rows[back], det_boxes[cols[back]])
         looks = self._appearances(image, det_boxes)
         if looks is not None:
             rows, cols, un_d = self._reidentify(rows, cols, un_d, det_boxes, looks[0])
