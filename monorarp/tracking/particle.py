@@ -232,9 +232,8 @@ class ParticleTracker(BookTracker):
 
         A pair needs box heights within ``_REID_SIZE``, bottom edges within half the track's last
         height (+2 px), centres within ``reid_gate`` box widths, and an appearance distance of at
-        most ``reid_distance``; the pairs minimise the total distance. A re-identified track forgets
-        the motion it had before: its particles restart at the detection, with no velocity history.
-        Returns ``(rows, cols, free)`` with the pairs added.
+        most ``reid_distance``; the pairs minimise the total distance. Returns ``(rows, cols, free)``
+        with the pairs added.
         """
         book = self._book
         taken = np.zeros(self.n_tracks, dtype=bool)
@@ -255,7 +254,6 @@ class ParticleTracker(BookTracker):
         if not len(m):
             return rows, cols, free
         t, d = lost[m[:, 0]], free[m[:, 1]]
-        self._restart(t, det_boxes[d])
         return np.concatenate([rows, t]), np.concatenate([cols, d]), np.setdiff1d(free, d)
 
     def _restart(self, rows: np.ndarray, boxes: np.ndarray) -> None:
@@ -332,12 +330,12 @@ class ParticleTracker(BookTracker):
         pred = cxcywh_to_boxes(book.mean)
         strong = (det_scores >= self.min_score) & ~np.array([d.weak for d in detections], dtype=bool)
         rows, cols, un_d = self._associate(pred, det_boxes, strong)
-        back = book.misses[rows] > self.max_coast      # lost tracks a detection overlaps again
-        if back.any():
-            self._restart(rows[back], det_boxes[cols[back]])
         looks = self._appearances(image, det_boxes)
         if looks is not None:
             rows, cols, un_d = self._reidentify(rows, cols, un_d, det_boxes, looks[0])
+        back = book.misses[rows] > self.max_coast      # lost tracks found again, by overlap or colour
+        if back.any():
+            self._restart(rows[back], det_boxes[cols[back]])
         matched = np.zeros(self.n_tracks, dtype=bool)
         matched[rows] = True
         if len(rows):
