@@ -187,3 +187,40 @@ def test_pooled_tracking_matches_motmetrics_overall():
     assert pooled["mota"] == pytest.approx(df.loc["OVERALL", "mota"], abs=1e-12)
     assert pooled["idf1"] == pytest.approx(df.loc["OVERALL", "idf1"], abs=1e-12)
     assert pooled["id_switches"] == df.loc["OVERALL", "num_switches"]
+
+
+def test_seeds_run_each_scenario_once_per_seed(tmp_path, monkeypatch):
+    """``--seeds``: one sequence per scenario and seed, each simulated with that seed, pooled in the totals."""
+    scen = tmp_path / "tiny.yaml"
+    scen.write_text(yaml.safe_dump({**SCENARIO, "traffic": {"vehicles_count": 3}}))
+    seen: list[int] = []
+    real = harness.frame_feed.rendered_frames
+
+    def recording(scenario, n):
+        seen.append(scenario.seed)
+        return real(scenario, n)
+
+    monkeypatch.setattr(harness.frame_feed, "rendered_frames", recording)
+    out = tmp_path / "out"
+    rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "particle", "--detector", "oracle",
+               "--seeds", "4-5,9", "--frames", "4", "--cache", "off", "--out", str(out)])
+    assert rc == 0 and seen == [4, 5, 9]
+    res = json.loads((out / "trackers.json").read_text())
+    names = ["bench_test seed 4", "bench_test seed 5", "bench_test seed 9"]
+    assert res["config"]["seeds"] == [4, 5, 9]
+    assert res["config"]["frames_per_scenario"] == dict.fromkeys(names, 4)
+    per = [res["per_scenario"][n]["trackers"]["particle"] for n in names]
+    pooled = res["trackers"]["particle"]
+    assert pooled["objects"] == sum(p["objects"] for p in per) > 0
+    assert pooled["misses"] == sum(p["misses"] for p in per)
+
+
+@pytest.mark.parametrize("seeds", ["5-3", "x", "-1", "2.5"])
+def test_bad_seeds_refused_in_one_line(tmp_path, capsys, seeds):
+    scen = tmp_path / "tiny.yaml"
+    scen.write_text(yaml.safe_dump(SCENARIO))
+    rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "sort", "--detector", "oracle",
+               f"--seeds={seeds}", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "--seeds" in err[0] and repr(seeds) in err[0]
+    assert not (tmp_path / "out").exists()

@@ -205,6 +205,8 @@ class BenchConfig:
     scenarios: Sequence[str | Path] = DEFAULT_SCENARIOS
     trackers: Sequence[str] = DEFAULT_TRACKERS
     frames: int | None = DEFAULT_FRAMES    # per scenario, capped at its duration x fps; None: the whole scenario
+    #: run each scenario at each of these seeds (one sequence per scenario and seed); None: its own seed
+    seeds: Sequence[int] | None = None
     #: the detector, state and risk stages every tracker shares (its tracker stage is replaced by each of ``trackers``)
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
     eval: EvalConfig = EvalConfig()
@@ -212,16 +214,23 @@ class BenchConfig:
     cache: FrameCache | Callable[[], FrameCache | None] | None = None
 
 
-def _load_scenarios(paths: Sequence[str | Path]) -> list[tuple[str, Scenario]]:
+def _load_scenarios(paths: Sequence[str | Path], seeds: Sequence[int] | None = None) -> list[tuple[str, Scenario]]:
+    """(unique name, scenario) of every sequence: each scenario as written, or at each of ``seeds``
+    (named ``"<name> seed <s>"``)."""
     if not paths:
         raise BenchError("no scenarios given")
+    if seeds is not None and (not len(seeds) or any(int(s) != s or s < 0 for s in seeds)):
+        raise BenchError(f"seeds must be non-negative integers, got {list(seeds)}")
     out: list[tuple[str, Scenario]] = []
     for p in paths:
-        sc = p if isinstance(p, Scenario) else load_scenario(p)
-        name, k = sc.name, 2
-        while name in {n for n, _ in out}:
-            name, k = f"{sc.name}#{k}", k + 1
-        out.append((name, sc))
+        base = p if isinstance(p, Scenario) else load_scenario(p)
+        variants = [(base.name, base)] if seeds is None else \
+            [(f"{base.name} seed {s}", base.model_copy(update={"seed": int(s)})) for s in seeds]
+        for label, sc in variants:
+            name, k = label, 2
+            while name in {n for n, _ in out}:
+                name, k = f"{label}#{k}", k + 1
+            out.append((name, sc))
     return out
 
 
@@ -233,7 +242,7 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
     trackers = check_trackers(config.trackers)
     if config.frames is not None and config.frames <= 0:
         raise BenchError(f"frames must be a positive integer, got {config.frames}")
-    scenarios = _load_scenarios(config.scenarios)
+    scenarios = _load_scenarios(config.scenarios, config.seeds)
     from monorarp.detection import build_detector
 
     cfg = config.pipeline.validate_names()
@@ -260,6 +269,7 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
     all_det_ms = np.concatenate(det_ms) if det_ms else np.empty(0)
     return {
         "config": {"scenarios": [str(p) for p in config.scenarios], "scenario_names": [n for n, _ in scenarios],
+                   "seeds": None if config.seeds is None else [int(s) for s in config.seeds],
                    "frames_per_scenario": {n: v["frames"] for n, v in per_scenario.items()},
                    "detector": cfg.detector.model_dump(), "trackers": trackers,
                    "state": cfg.state.model_dump(), "risk": cfg.risk.model_dump(), "scoring": asdict(config.eval)},
@@ -290,7 +300,11 @@ def table_iii(result: Mapping) -> str:
                      f"| {_f(s.get('tracks_per_frame'), '{:.1f}')} |")
     p = result.get("paper_table_iii_s", PAPER_TABLE_III_S)
     cfg = result["config"]
-    frames = ", ".join(f"{n}: {k}" for n, k in cfg["frames_per_scenario"].items())
+    per_seq = cfg["frames_per_scenario"]
+    frames = (", ".join(f"{n}: {k}" for n, k in per_seq.items()) if len(per_seq) <= 4 else
+              f"{len(per_seq)} sequences of {min(per_seq.values())}-{max(per_seq.values())} frames")
+    if cfg.get("seeds"):
+        frames += f" (each scenario at seeds {', '.join(map(str, cfg['seeds']))})"
     lines += ["", f"Paper (FasterRCNN, GTX 1070, 1080p): KCF tracker {p['kcf']:.4f} s; object detector + particle "
                   f"tracker {p['detector']:.4f} + {p['particle']:.4f} s. No accuracy: the paper had no ground truth.",
               f"Detector: {cfg['detector']['name']}; frames: {frames}. MOTA/IDF1/ID switches: motmetrics, IoU >= "

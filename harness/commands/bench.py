@@ -19,6 +19,25 @@ def _split(values: list[str] | None) -> list[str]:
     return [v.strip() for item in values or [] for v in item.split(",") if v.strip()]
 
 
+def parse_seeds(values: list[str] | None) -> list[int] | None:
+    """``["3-5", "9,11"]`` -> ``[3, 4, 5, 9, 11]`` (None: not given); a bad item is a one-line error."""
+    if values is None:
+        return None
+    seeds: list[int] = []
+    for item in _split(values):
+        lo, sep, hi = item.partition("-")
+        try:
+            a, b = int(lo), int(hi if sep else lo)
+        except ValueError:
+            raise UserError(f"--seeds: expected non-negative integers or ranges like 3-12, got {item!r}") from None
+        if a < 0 or b < a:
+            raise UserError(f"--seeds: expected non-negative integers or ranges like 3-12, got {item!r}")
+        seeds += [s for s in range(a, b + 1) if s not in seeds]
+    if not seeds:
+        raise UserError("--seeds: no seed given")
+    return seeds
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
 
@@ -34,6 +53,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"scenario files, space- or comma-separated (default: {','.join(DEFAULT_SCENARIOS)})")
     t.add_argument("--trackers", nargs="+", default=None, metavar="NAME",
                    help=f"registered trackers, space- or comma-separated (default: {','.join(DEFAULT_TRACKERS)})")
+    t.add_argument("--seeds", nargs="+", default=None, metavar="SEED",
+                   help="run each scenario at each of these seeds (integers or ranges such as 3-12, space- or "
+                        "comma-separated; one sequence per scenario and seed, all pooled; default: each scenario's own)")
     add_pipeline_options(t, stages=("detector",))
     add_oracle_arguments(t)
     t.add_argument("--frames", type=int, default=DEFAULT_FRAMES, metavar="N",
@@ -53,7 +75,9 @@ def run_trackers(args: argparse.Namespace) -> int:
     scenarios = _split(args.scenarios) if args.scenarios is not None else list(DEFAULT_SCENARIOS)
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
-    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, pipeline=pipeline_config(args), frames=args.frames)
+    seeds = parse_seeds(args.seeds)
+    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, pipeline=pipeline_config(args), frames=args.frames,
+                      seeds=seeds)
     cfg.cache = lambda: cache_from_args(args)
     result = run_bench(cfg, out_dir=args.out, log=stderr_log)
     print(table_iii(result))
