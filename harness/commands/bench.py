@@ -29,7 +29,7 @@ def parse_seeds(values: list[str] | None) -> list[int] | None:
         try:
             a, b = int(lo), int(hi if sep else lo)
         except ValueError:
-            raise UserError(f"--seeds: expected non-negative integers or ranges like 3-12, got {item!r}") from None
+            a, b = -1, -1
         if a < 0 or b < a:
             raise UserError(f"--seeds: expected non-negative integers or ranges like 3-12, got {item!r}")
         seeds += [s for s in range(a, b + 1) if s not in seeds]
