@@ -23,7 +23,7 @@ def parse_seeds(values: list[str] | None) -> list[int] | None:
     """``["3-5", "9,11"]`` -> ``[3, 4, 5, 9, 11]`` (None: not given); a bad item is a one-line error."""
     if values is None:
         return None
-    seeds: list[int] = []
+    seeds: dict[int, None] = {}                        # ordered, without repeats
     for item in _split(values):
         lo, sep, hi = item.partition("-")
         try:
@@ -32,10 +32,10 @@ def parse_seeds(values: list[str] | None) -> list[int] | None:
             a, b = -1, -1
         if a < 0 or b < a:
             raise UserError(f"--seeds: expected non-negative integers or ranges like 3-12, got {item!r}")
-        seeds += [s for s in range(a, b + 1) if s not in seeds]
+        seeds.update(dict.fromkeys(range(a, b + 1)))
     if not seeds:
         raise UserError("--seeds: no seed given")
-    return seeds
+    return list(seeds)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
