@@ -44,6 +44,23 @@ class Recording(ParticleTracker):
         return super().update(image, detections, t)
 
 
+class Forgetful(ParticleTracker):
+    """The particle tracker, reporting no track every n-th frame, n = 2, 3, 4, ... for each new instance
+    (one per sequence): worse for sure, and by a different margin in each sequence."""
+
+    made = 0
+
+    def __init__(self) -> None:
+        super().__init__()
+        Forgetful.made += 1
+        self.every, self.k = Forgetful.made + 1, 0
+
+    def update(self, image, detections, t):
+        tracks = super().update(image, detections, t)
+        self.k += 1
+        return [] if self.k % self.every == 0 else tracks
+
+
 @pytest.fixture(scope="module")
 def bench(tmp_path_factory):
     base = tmp_path_factory.mktemp("bench")
@@ -116,6 +133,7 @@ def test_output_files(bench, capsys):
     assert sum(b["objects"] for b in by.values()) == res["trackers"]["particle"]["objects"]
     assert by["10-20"]["mota"] == pytest.approx(1.0) and by["0-10"]["objects"] == 0
     assert "By range of the true distance" in md and "| 10-20 m |" in md
+    assert res["bootstrap"] is None and "Uncertainty over sequences" not in md   # too few sequences
 
 
 def test_unknown_tracker_refused_before_rendering(tmp_path, monkeypatch, capsys):
@@ -201,18 +219,35 @@ def test_seeds_run_each_scenario_once_per_seed(tmp_path, monkeypatch):
         return real(scenario, n)
 
     monkeypatch.setattr(harness.frame_feed, "rendered_frames", recording)
+    registry.add("tracker", "forgetful", Forgetful)
+    Forgetful.made = 0
     out = tmp_path / "out"
-    rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "particle", "--detector", "oracle",
-               "--seeds", "4-5,9", "--frames", "4", "--cache", "off", "--out", str(out)])
-    assert rc == 0 and seen == [4, 5, 9]
+    try:
+        rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "particle,forgetful",
+                   "--detector", "oracle", "--seeds", "4-7,9", "--frames", "6", "--cache", "off", "--out", str(out)])
+    finally:
+        registry.remove("tracker", "forgetful")
+    assert rc == 0 and seen == [4, 5, 6, 7, 9]
     res = json.loads((out / "trackers.json").read_text())
-    names = ["bench_test seed 4", "bench_test seed 5", "bench_test seed 9"]
-    assert res["config"]["seeds"] == [4, 5, 9]
-    assert res["config"]["frames_per_scenario"] == dict.fromkeys(names, 4)
+    names = [f"bench_test seed {k}" for k in (4, 5, 6, 7, 9)]
+    assert res["config"]["seeds"] == [4, 5, 6, 7, 9]
+    assert res["config"]["frames_per_scenario"] == dict.fromkeys(names, 6)
     per = [res["per_scenario"][n]["trackers"]["particle"] for n in names]
     pooled = res["trackers"]["particle"]
     assert pooled["objects"] == sum(p["objects"] for p in per) > 0
     assert pooled["misses"] == sum(p["misses"] for p in per)
+    # the bootstrap resamples these 5 sequences: a pooled ratio over any draw of them lies between the
+    # sequences' own values (for the difference too, since both trackers share each sequence's objects)
+    boot = res["bootstrap"]
+    assert boot["sequences"] == 5 and boot["reference"] == "particle"
+    mota = {t: np.array([res["per_scenario"][n]["trackers"][t]["mota"] for n in names]) for t in ("particle", "forgetful")}
+    for t, lo_hi in ((t, boot["trackers"][t]["mota"]) for t in mota):
+        assert mota[t].min() - 1e-12 <= lo_hi[0] <= res["trackers"][t]["mota"] <= lo_hi[1] <= mota[t].max() + 1e-12
+    gap = mota["forgetful"] - mota["particle"]
+    lo, hi = boot["trackers"]["forgetful"]["mota_minus_reference"]
+    assert gap.min() - 1e-12 <= lo < hi <= gap.max() + 1e-12 and hi < 0 and np.ptp(gap) > 0.1
+    assert "mota_minus_reference" not in boot["trackers"]["particle"]
+    assert "| forgetful |" in (out / "trackers.md").read_text().split("Uncertainty over sequences")[1]
 
 
 @pytest.mark.parametrize("seeds", ["5-3", "x", "-1", "2.5"])

@@ -30,6 +30,7 @@ import numpy as np
 
 from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
 from harness.scenario import Scenario, load_scenario
+from harness.scoring.bootstrap import SequenceCounts, tracker_intervals
 from harness.scoring.evaluate import EvalConfig, evaluate, state_metrics
 from harness.scoring.records import ObjectRecord
 from harness.truth import FrameTruth
@@ -276,8 +277,23 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
         "detector_ms": _ms_stats(all_det_ms),
         "trackers": {t: _summary(per_tracker[t], all_det_ms, config.eval) for t in trackers},
         "per_scenario": per_scenario,
+        "bootstrap": sequence_bootstrap(per_tracker),
         "paper_table_iii_s": PAPER_TABLE_III_S,
     }
+
+
+#: Fewer sequences than this get no interval: a bootstrap of 2-4 sequences has too few distinct draws to mean much.
+MIN_BOOTSTRAP_SEQUENCES = 5
+
+
+def sequence_bootstrap(per_tracker: Mapping[str, Sequence[TrackerRun]]) -> dict | None:
+    """95 % sequence-bootstrap intervals of each tracker's pooled MOTA and IDF1, and of its difference from the
+    first tracker, from the same draws (:mod:`harness.scoring.bootstrap`); None with fewer than
+    :data:`MIN_BOOTSTRAP_SEQUENCES` sequences."""
+    if not per_tracker or len(next(iter(per_tracker.values()))) < MIN_BOOTSTRAP_SEQUENCES:
+        return None
+    counts = {t: SequenceCounts.from_tracking([r.metrics["tracking"] for r in runs]) for t, runs in per_tracker.items()}
+    return tracker_intervals(counts, reference=next(iter(per_tracker)))
 
 
 # --------------------------------------------------------------------------------------- tables
@@ -301,8 +317,9 @@ def table_iii(result: Mapping) -> str:
     p = result.get("paper_table_iii_s", PAPER_TABLE_III_S)
     cfg = result["config"]
     per_seq = cfg["frames_per_scenario"]
+    lo, hi = min(per_seq.values()), max(per_seq.values())
     frames = (", ".join(f"{n}: {k}" for n, k in per_seq.items()) if len(per_seq) <= 4 else
-              f"{len(per_seq)} sequences of {min(per_seq.values())}-{max(per_seq.values())} frames")
+              f"{len(per_seq)} sequences of {lo if lo == hi else f'{lo}-{hi}'} frames")
     if cfg.get("seeds"):
         frames += f" (each scenario at seeds {', '.join(map(str, cfg['seeds']))})"
     lines += ["", f"Paper (FasterRCNN, GTX 1070, 1080p): KCF tracker {p['kcf']:.4f} s; object detector + particle "
@@ -319,6 +336,7 @@ def table_iii(result: Mapping) -> str:
         for name, by in ranged.items():
             lines.append(f"| {name} | " + " | ".join(
                 f"{_f(by[b]['mota'], '{:.3f}')} / {_f(by[b]['idf1'], '{:.3f}')} ({by[b]['objects']})" for b in bins) + " |")
+    lines += bootstrap_lines(result.get("bootstrap"))
     per = result.get("per_scenario", {})
     if len(per) > 1:
         lines += ["", "Per scenario:", "", "| Scenario | Tracker | tracker ms (mean) | MOTA | IDF1 | HOTA | ID switches "
@@ -330,6 +348,24 @@ def table_iii(result: Mapping) -> str:
                              f"| {_f(s['idf1'], '{:.3f}')} | {_f(s.get('hota'), '{:.3f}')} | {s['id_switches']} | "
                              f"{_f(None if d is None else 100 * d, '{:.2f} %')} |")
     return "\n".join(lines)
+
+
+def bootstrap_lines(boot: Mapping | None) -> list[str]:
+    """The table of :func:`sequence_bootstrap`'s intervals (nothing when there are none)."""
+    if not boot:
+        return []
+
+    def ci(v, fmt: str = ".3f") -> str:
+        return "-" if v is None else f"{v[0]:{fmt}} .. {v[1]:{fmt}}"
+
+    ref = boot["reference"]
+    lines = ["", f"Uncertainty over sequences ({boot['level']:.0%} intervals, bootstrap: {boot['resamples']} draws of the "
+                 f"{boot['sequences']} sequences with replacement, the same draws for every tracker; metrics.md):", "",
+             f"| Tracker | MOTA | IDF1 | MOTA - {ref} | IDF1 - {ref} |", "|---|---:|---:|---:|---:|"]
+    for name, e in boot["trackers"].items():
+        lines.append(f"| {name} | {ci(e['mota'])} | {ci(e['idf1'])} | {ci(e.get('mota_minus_reference'), '+.3f')} "
+                     f"| {ci(e.get('idf1_minus_reference'), '+.3f')} |")
+    return lines
 
 
 def run_bench(config: BenchConfig = BenchConfig(), out_dir: str | Path | None = None,
