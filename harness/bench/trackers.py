@@ -152,7 +152,8 @@ def pooled_tracking(tracking: Sequence[Mapping]) -> dict[str, float | int]:
     As motmetrics' "OVERALL" row: MOTA = 1 - (misses + FP + switches) / objects;
     IDF1 = 2 IDTP / (objects + predictions), with IDTP = IDR x objects and
     predictions = matches + FP = objects - misses + FP (each sequence's
-    ``tracking`` section of ``metrics.json``). HOTA, DetA and AssA are pooled as TrackEval
+    ``tracking`` section of ``metrics.json``; :class:`~harness.scoring.bootstrap.SequenceCounts`
+    with every sequence counted once). HOTA, DetA and AssA are pooled as TrackEval
     combines sequences (:func:`harness.scoring.hota.combine`) from each section's
     ``hota_by_alpha``; NaN when a section lacks it.
     """
@@ -162,16 +163,14 @@ def pooled_tracking(tracking: Sequence[Mapping]) -> dict[str, float | int]:
     fp = sum(int(t["false_positives"]) for t in tracking)
     miss = sum(int(t["misses"]) for t in tracking)
     sw = sum(int(t["id_switches"]) for t in tracking)
-    idtp = sum(float(t["idr"]) * int(t["objects"]) for t in tracking if int(t["objects"]) > 0)
-    preds = obj - miss + fp
+    counts, every_once = SequenceCounts.from_tracking(tracking), np.ones((1, len(tracking)))
     nan = float("nan")
     hota = {"hota": nan, "deta": nan, "assa": nan}
     if tracking and all(t.get("hota_by_alpha") for t in tracking):
         pooled = combine([HotaResult.from_dict(t["hota_by_alpha"]) for t in tracking])
         if (pooled.tp + pooled.fn + pooled.fp).any():
             hota = {k: v for k, v in pooled.summary().items() if k in hota}
-    return {"mota": 1.0 - (miss + fp + sw) / obj if obj else nan,
-            "idf1": 2.0 * idtp / (obj + preds) if obj + preds else nan,
+    return {"mota": float(counts.mota(every_once)[0]), "idf1": float(counts.idf1(every_once)[0]),
             **hota, "id_switches": sw, "false_positives": fp, "misses": miss, "objects": obj}
 
 
