@@ -18,6 +18,7 @@ import json
 import time
 from pathlib import Path
 
+from harness.bench.targets import target_table
 from harness.scorecard.run import SUITES, ScorecardOptions, run_scorecard
 
 
@@ -71,10 +72,7 @@ def main() -> None:
     run_scorecard(args.out, opts)
     card = json.loads((args.out / "scorecard.json").read_text())
     rows = report(card, time.perf_counter() - t0)
-    w = max(len(r[0]) for r in rows)
-    print(f"scorecard targets — detector {args.detector}, suites {', '.join(opts.suites)}")
-    for target, req, got in rows:
-        print(f"  {target:<{w}}  {req:<24}  {got}")
+    print(target_table(f"scorecard targets — detector {args.detector}, suites {', '.join(opts.suites)}", rows))
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ import argparse
 import time
 from pathlib import Path
 
+from harness.bench.targets import target_table
 from harness.bench.trackers import BenchConfig, run_bench
 from harness.commands.bench import parse_seeds
 from harness.frame_cache import FrameCache, default_dir
@@ -103,10 +104,7 @@ def main() -> None:
     rows = [whole_run_row(name, req, cfg, cache, args.out) for name, req in WHOLE_RUNS.items()]
     rows += pooled_rows(seeds, args.frames, cfg, cache, args.out)
     rows.append(("wall time", "", f"{time.perf_counter() - t0:.0f} s"))
-    w = max(len(r[0]) for r in rows)
-    print(f"tracking targets — detector {args.detector}, tracker {args.tracker}")
-    for label, required, got in rows:
-        print(f"  {label:<{w}}  {required:<22}  {got}")
+    print(target_table(f"tracking targets — detector {args.detector}, tracker {args.tracker}", rows))
 
 
 if __name__ == "__main__":
