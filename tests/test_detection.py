@@ -274,3 +274,65 @@ def test_shipped_model_gives_weak_detections_only_when_configured():
     assert CenterNetDetector().weak_score_threshold is None              # opt-in (docs/tracking.md)
     img = np.zeros((192, 320, 3), np.uint8)
     assert not any(d.weak for d in CenterNetDetector().detect(img, weak=True))
+
+
+def _rendered_frames(n: int) -> tuple[list[np.ndarray], object]:
+    from harness.render.renderer import Renderer
+    from harness.scenario import parse_scenario
+    from harness.simulation.simulator import simulate
+
+    scen = parse_scenario(SCENE)
+    with Renderer(scen) as r:
+        return [r.render(w).image for w in list(simulate(scen, 3 * n))[::3]], scen.camera.model()
+
+
+def test_parallel_passes_give_the_same_detections_with_the_fovea_on_the_helper_thread():
+    with pytest.raises(ValueError, match="parallel_passes"):
+        CenterNetDetector(parallel_passes="yes")
+    images, cam = _rendered_frames(3)
+    serial = CenterNetDetector(camera=cam, parallel_passes=False)
+    parallel = CenterNetDetector(camera=cam)
+    assert parallel.parallel_passes and parallel.fovea(640, 360)[0] is not None
+    threads: list[str] = []
+    raw = parallel.raw
+
+    def recording_raw(*args, **kw):
+        import threading
+
+        threads.append(threading.current_thread().name)
+        return raw(*args, **kw)
+
+    parallel.raw = recording_raw
+    for image in images:
+        b0, s0 = serial.detect_arrays(image, threshold=0.2)
+        b1, s1 = parallel.detect_arrays(image, threshold=0.2)
+        assert len(b0) >= 3
+        np.testing.assert_array_equal(b0, b1)
+        np.testing.assert_array_equal(s0, s1)
+    assert threads.count("MainThread") == len(images)
+    assert sum(t.startswith("monorarp-second-pass") for t in threads) == len(images)
+
+
+def _detect_in_child(image, cam, queue) -> None:
+    boxes, _ = CenterNetDetector(camera=cam).detect_arrays(image)
+    queue.put(boxes)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="fork start method")
+def test_a_forked_process_gets_its_own_second_pass_thread():
+    """A child forked after the parent used the helper thread does not inherit it: without its own it would hang."""
+    import multiprocessing
+
+    images, cam = _rendered_frames(1)
+    want, _ = CenterNetDetector(camera=cam).detect_arrays(images[0])      # the parent's helper thread now exists
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_detect_in_child, args=(images[0], cam, queue))
+    child.start()
+    try:
+        got = queue.get(timeout=60)
+    finally:
+        child.join(timeout=10)
+        if child.is_alive():
+            child.kill()
+    np.testing.assert_array_equal(got, want)

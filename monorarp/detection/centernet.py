@@ -21,6 +21,7 @@ from monorarp.detection.bottom_edge import refine_bottom as refine_bottom_edges
 from monorarp.detection.fovea import Fovea, merge
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
+from monorarp.detection.second_pass import helper_pool
 from monorarp.types import Detection, strong
 
 REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes/edge.md)
@@ -122,6 +123,8 @@ class CenterNetDetector:
     image to a fraction of a pixel (:func:`monorarp.detection.bottom_edge.refine_bottom`;
     the detector's edge stays where no clear edge lies within a few px of it). ``dehaze``: remove haze
     (:func:`monorarp.detection.dehaze.dehaze`, dark channel prior) from each image before both passes.
+    ``parallel_passes``: run the fovea pass on a helper thread while the full view runs on the
+    caller's (:mod:`monorarp.detection.second_pass`; the same detections, in less wall time).
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -136,7 +139,7 @@ class CenterNetDetector:
                  fovea_margin_px: float = 2.0, fovea_dup_iou: float = 0.3, fovea_support: float | None = 0.2,
                  fovea_box: str = "auto", fovea_max_height: float = 0.35, refine_bottom: bool = REFINE_DEFAULT,
                  dehaze: bool = False, weak_score_threshold: float | None = None,
-                 **_ignored) -> None:
+                 parallel_passes: bool = True, **_ignored) -> None:
         self.path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         self.session = open_session(self.path, intra_op_num_threads)
         self.input_name, self.input_h, self.input_w = expect_image_input(self.session, self.path)
@@ -173,6 +176,9 @@ class CenterNetDetector:
         if not isinstance(refine_bottom, bool):
             raise ValueError(f"refine_bottom must be true or false, got {refine_bottom!r}")
         self.refine_bottom = refine_bottom
+        if not isinstance(parallel_passes, bool):
+            raise ValueError(f"parallel_passes must be true or false, got {parallel_passes!r}")
+        self.parallel_passes = parallel_passes
         self._fovea: tuple[tuple[int, int], Fovea | None, Letterbox | None] | None = None
         self.dehaze = bool(dehaze)
 
@@ -225,12 +231,14 @@ class CenterNetDetector:
             from monorarp.detection.dehaze import dehaze
 
             image = dehaze(image)
+        fov, flb = self.fovea(image.shape[1], image.shape[0])
+        second = helper_pool().submit(self.raw, fov.cut(image), flb) if fov is not None and self.parallel_passes \
+            else None
         hm, lt, lb = self.raw(image)
         boxes, scores = decode(hm, lt, self.meta.stride, thr, self.max_detections)
         boxes = lb.to_src(boxes, clip=False)
-        fov, flb = self.fovea(image.shape[1], image.shape[0])
         if fov is not None:
-            hm, lt, _ = self.raw(fov.cut(image), flb)
+            hm, lt, _ = second.result() if second is not None else self.raw(fov.cut(image), flb)
             fb, fs = decode(hm, lt, self.meta.stride, thr if support is None else support, self.max_detections)
             fb = fov.to_src(flb.to_src(fb, clip=False))
             boxes, scores = merge(boxes, scores, fb, fs, fov, thr, support,
