@@ -31,4 +31,5 @@ def _forget_after_fork() -> None:
     _pool, _lock = None, threading.Lock()
 
 
-os.register_at_fork(after_in_child=_forget_after_fork)
+if hasattr(os, "register_at_fork"):     # not on Windows, which has no fork
+    os.register_at_fork(after_in_child=_forget_after_fork)
