@@ -23,6 +23,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import numpy as np  # noqa: E402
 
+from harness.bench.script import run_script  # noqa: E402
 from harness.render.renderer import Renderer  # noqa: E402
 from harness.run import with_scenario_markings  # noqa: E402
 from harness.scenario import load_scenario  # noqa: E402
@@ -83,4 +84,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

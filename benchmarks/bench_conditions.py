@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from harness.bench.script import run_script
 from harness.ground_truth import frame_truth
 from harness.render.renderer import Renderer
 from harness.scenario import load_scenario_dict, parse_scenario
@@ -109,6 +110,9 @@ def main() -> None:
                     help="detector name(s) or .onnx path(s), comma-separated, run on the same frames")
     args = ap.parse_args()
     names = args.conditions.split(",")
+    unknown = [n for n in names if n not in CONDITIONS]
+    if unknown:
+        ap.error(f"--conditions: unknown {', '.join(unknown)}; available: {', '.join(CONDITIONS)}")
     detectors = tuple(args.detector.split(","))
     day: dict[str, float] = {}
     for name in names:
@@ -130,4 +134,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

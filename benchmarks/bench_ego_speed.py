@@ -22,6 +22,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from harness.bench.script import run_script
 from monorarp.ego_speed.ground_track import GroundTrackEgoSpeed
 from monorarp.ego_speed.lsd_period import LsdPeriodEgoSpeed  # noqa: E402
 from synthetic_road import RoadSpec, default_camera, sequence  # noqa: E402
@@ -111,4 +112,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

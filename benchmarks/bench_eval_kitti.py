@@ -22,6 +22,8 @@ from pathlib import Path
 
 import yaml
 
+from harness.bench.script import run_script
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -29,7 +31,9 @@ def export_dataset(scenario: Path, size: tuple[int, int], frames: int, kind: str
     from harness.export.exporter import export
     from harness.export.source import open_source
 
-    data = yaml.safe_load(scenario.read_text())
+    from harness.scenario import load_scenario_dict
+
+    data = load_scenario_dict(scenario)             # a missing or malformed file: one line (ScenarioError)
     data["camera"] = {**(data.get("camera") or {}), "width": size[0], "height": size[1]}
     with tempfile.TemporaryDirectory() as tmp:
         scen = Path(tmp) / scenario.name
@@ -37,16 +41,24 @@ def export_dataset(scenario: Path, size: tuple[int, int], frames: int, kind: str
         export(open_source(scen, frames), kind, out, progress=False)
 
 
+def frame_size(text: str) -> tuple[int, int]:
+    """``"1242x375"`` -> (1242, 375); anything else is an argparse error."""
+    w, sep, h = text.lower().partition("x")
+    if not (sep and w.isdigit() and h.isdigit() and int(w) >= 64 and int(h) >= 64):
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in px (each >= 64), got {text!r}")
+    return int(w), int(h)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=150)
-    ap.add_argument("--size", default="1242x375")
+    ap.add_argument("--size", type=frame_size, default="1242x375", help="WIDTHxHEIGHT (default 1242x375)")
     ap.add_argument("--scenario", type=Path, default=ROOT / "scenarios" / "highway_cruise.yaml")
     ap.add_argument("--kind", default="kitti", choices=("kitti", "kitti-tracking"))
     ap.add_argument("--data", type=Path, default=None, help="keep (or reuse) the exported dataset here")
     ap.add_argument("--detector", default="centernet")
     args = ap.parse_args()
-    size = tuple(int(v) for v in args.size.lower().split("x"))
+    size = args.size
 
     from harness.kitti_eval.evaluate import KittiEvalOptions, evaluate_kitti
     from harness.kitti_eval.reader import open_dataset
@@ -83,4 +95,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

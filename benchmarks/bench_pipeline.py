@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from harness.bench.script import run_script
 from monorarp.camera import CameraModel
 from monorarp.pipeline import Pipeline, run_sync, run_threaded
 from monorarp.risk import TTCRiskEstimator
@@ -102,4 +103,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

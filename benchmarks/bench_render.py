@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 
+from harness.bench.script import run_script
 from harness.ground_truth import frame_truth
 from harness.render.renderer import Renderer
 from harness.scenario import Scenario, parse_scenario
@@ -91,4 +92,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -18,6 +18,7 @@ import time
 
 import numpy as np
 
+from harness.bench.script import run_script
 from monorarp.risk_mc.estimator import MonteCarloRisk
 from monorarp.risk_mc import rollout_numba
 from monorarp.types import ObjectState
@@ -67,4 +68,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

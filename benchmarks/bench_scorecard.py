@@ -18,6 +18,7 @@ import json
 import time
 from pathlib import Path
 
+from harness.bench.script import run_script
 from harness.bench.targets import target_table
 from harness.scorecard.run import SUITES, ScorecardOptions, run_scorecard
 
@@ -76,4 +77,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

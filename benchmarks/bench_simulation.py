@@ -11,6 +11,7 @@ import time
 
 from highway_env.road.road import Road
 
+from harness.bench.script import run_script
 from harness.scenario import parse_scenario
 from harness.simulation.simulator import Simulation
 
@@ -37,4 +38,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -37,6 +37,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sweep import bench, write_spec  # noqa: E402  (sets sys.path for the repository and PYOPENGL_PLATFORM)
 
+from harness.bench.script import run_script
+
 
 def load() -> str:
     a, b, c = os.getloadavg()
@@ -143,4 +145,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -25,6 +25,7 @@ import argparse
 import time
 from pathlib import Path
 
+from harness.bench.script import run_script
 from harness.bench.targets import target_table
 from harness.bench.trackers import BenchConfig, run_bench
 from harness.commands.bench import parse_seeds
@@ -99,6 +100,7 @@ def main() -> None:
     except UserError as e:
         ap.error(str(e))
     cfg = PipelineConfig(detector=ComponentConfig(name=args.detector), tracker=ComponentConfig(name=args.tracker))
+    cfg.validate_names()                # an unknown name: one line, before anything renders
     cache = None if args.no_cache else FrameCache(default_dir())
     t0 = time.perf_counter()
     rows = [whole_run_row(name, req, cfg, cache, args.out) for name, req in WHOLE_RUNS.items()]
@@ -108,4 +110,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

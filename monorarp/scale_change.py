@@ -139,6 +139,10 @@ def lateral_displacement(centre_x, shift_x, scale, depth_m, fx: float, cx: float
     return depth_m / fx * ((centre_x + shift_x - cx) / scale - (centre_x - cx))
 
 
+#: a region of the image narrower or lower than this (px) is not registered (boxes off the image)
+MIN_REGION_PX = 3
+
+
 def region(boxes: np.ndarray, shape: tuple[int, ...], grow: float = 0.5) -> tuple[int, int, int, int]:
     """``(x0, y0, x1, y1)`` px: the part of an image of ``shape`` holding the (N, 4) ``boxes``, each grown
     by ``grow`` of its size on every side (room for the fit's scale and shift), for :func:`gradient_stack`."""
@@ -203,8 +207,10 @@ class LoomingRegistration:
         gray = gray.astype(np.float32)
         usable = np.asarray(valid, dtype=bool) & np.isfinite(boxes).all(axis=1) & ~occluded(boxes, self.max_overlap)
         todo = [j for j, i in enumerate(ids) if usable[j] and i in self._boxes]
+        x0 = y0 = x1 = y1 = 0
         if todo and self._prev is not None and self._prev.shape == gray.shape:
             x0, y0, x1, y1 = region(np.concatenate([boxes[todo], [self._boxes[ids[j]] for j in todo]]), gray.shape)
+        if x1 - x0 >= MIN_REGION_PX and y1 - y0 >= MIN_REGION_PX:    # else the boxes lie (almost) off the image
             stack = gradient_stack(gray[y0:y1, x0:x1])      # the gradients where the patches are, not everywhere
             for j in todo:
                 prev_box = self._boxes[ids[j]]

@@ -259,3 +259,15 @@ def test_bad_registration_settings_are_refused(kw):
         LoomingRegistration(**kw)
     with pytest.raises(ValueError):
         StateEstimator(CameraModel.from_fov(640, 360, 60.0, 1.3), **{f"registration_{k}": v for k, v in kw.items()})
+
+
+@pytest.mark.parametrize("shape", [(360, 640), (2, 2)])
+def test_boxes_off_the_image_are_not_registered_and_do_not_fail(shape):
+    """Boxes wholly outside the frame (a coasting track that left it, or a frame smaller than the boxes' camera)
+    leave no region to register: no scale, and no error from the gradient filter on an empty region."""
+    reg = LoomingRegistration()
+    img = texture(shape=shape)
+    off = np.array([(700.0, 160.0, 760.0, 220.0), (660.0, 200.0, 700.0, 240.0)])     # right of a 640-px frame
+    reg.update(img, [1, 2], off, np.array([True, True]))
+    s, sd, centre, shift = reg.update(img, [1, 2], off + 1.0, np.array([True, True]))
+    assert np.isnan(s).all() and np.isnan(sd).all() and np.isnan(centre).all() and np.isnan(shift).all()
