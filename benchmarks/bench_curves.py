@@ -60,6 +60,12 @@ def _median_rel(rows: np.ndarray, sel: np.ndarray) -> str:
     return "-" if not sel.any() else f"{np.median(np.abs(rows[sel, 1] - rows[sel, 0]) / rows[sel, 0]):.3f}"
 
 
+def _mean(values, fmt: str) -> str:
+    """Mean of the values that are not None (a short run can have no lane-speed estimate), or "-"."""
+    v = [x for x in values if x is not None]
+    return "-" if not v else format(float(np.mean(v)), fmt)
+
+
 def main(sweep: str) -> int:
     groups: dict[tuple, list[dict]] = defaultdict(list)
     for run_json in sorted(Path(sweep, "runs").glob("*/run.json")):
@@ -77,8 +83,8 @@ def main(sweep: str) -> int:
         inside, other = sum(r["inside"] for r in runs), sum(r["other"] for r in runs)
         print(f"| {-neg_r:g} | {direction} | {variant} | {_median_rel(rows, near)} | {_median_rel(rows, far)} "
               f"| {_median_rel(rows, near & on_arc)} | {_median_rel(rows, far & on_arc)} "
-              f"| {np.mean([r['mota'] for r in runs]):.3f} | {np.mean([r['idf1'] for r in runs]):.3f} "
-              f"| {np.mean([r['recall'] for r in runs]):.3f} | {np.mean([r['lane'] for r in runs]):.4f} "
+              f"| {_mean([r['mota'] for r in runs], '.3f')} | {_mean([r['idf1'] for r in runs], '.3f')} "
+              f"| {_mean([r['recall'] for r in runs], '.3f')} | {_mean([r['lane'] for r in runs], '.4f')} "
               f"| {sum(r['episodes'] for r in runs)} ({sum(r['false_alarms'] for r in runs)}) "
               f"| {sum(r['conflict'] for r in runs)} | {inside} / {other} ({inside / max(other, 1):.1%}) |")
     return 0

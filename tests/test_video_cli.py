@@ -294,6 +294,7 @@ BAD = {
     "unknown tracker": (None, None, ["--tracker", "nosuch"], "unknown tracker 'nosuch'"),
     "missing onnx": (None, None, ["--detector", "{tmp}/absent.onnx"], "model file not found"),
     "truth-only detector": (None, None, ["--detector", "oracle"], "needs the simulation's ground truth"),
+    "yolo without its model": (None, None, ["--detector", "yolo"], "detector 'yolo' needs a model file"),
     "truncated video": ("{tmp}/truncated.mp4", None, [], "truncated or corrupt"),
 }
 

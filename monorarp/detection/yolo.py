@@ -86,9 +86,12 @@ class YoloDetector:
     (default COCO vehicles; required when the model has other than 80 classes).
     """
 
-    def __init__(self, model_path: str | Path, conf_threshold: float = 0.25, iou_threshold: float = 0.45,
+    def __init__(self, model_path: str | Path | None = None, conf_threshold: float = 0.25, iou_threshold: float = 0.45,
                  input_size: tuple[int, int] | None = None, class_map: dict[int, str] | None = None,
                  intra_op_num_threads: int = 1, **_ignored) -> None:
+        if model_path is None:       # the registered name alone: no YOLO weights are shipped
+            raise ModelError("detector 'yolo' needs a model file (none is shipped): give a YOLOv8/YOLO11 ONNX "
+                             "export as --detector PATH.onnx, or detector_kwargs {model_path: PATH.onnx}")
         self.path = Path(model_path)
         self.session = open_session(self.path, intra_op_num_threads)
         self.input_name, h, w = expect_image_input(self.session, self.path)
