@@ -32,7 +32,6 @@ from harness.commands.bench import parse_seeds
 from harness.frame_cache import FrameCache, default_dir
 from harness.run import run_scenario
 from harness.scenario import load_scenario
-from monorarp.errors import UserError
 from monorarp.pipeline import ComponentConfig, PipelineConfig
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
@@ -45,16 +44,19 @@ def _fmt(v) -> str:
     return "–" if v is None or v != v else f"{v:.3f}"
 
 
+def _scores(t) -> str:
+    """MOTA / IDF1 and the error counts of a ``tracking`` section (one run's, or pooled)."""
+    return (f"{_fmt(t['mota'])} / {_fmt(t['idf1'])}  (misses {t['misses']}, FP {t['false_positives']}, "
+            f"id switches {t['id_switches']} of {t['objects']})")
+
+
 def whole_run_row(name: str, required: float, cfg: PipelineConfig, cache: FrameCache | None,
                   out: Path | None) -> tuple[str, str, str]:
     """(row label, required, measured) of ``monorarp run scenarios/NAME.yaml``."""
     scenario = load_scenario(SCENARIOS / f"{name}.yaml")
     metrics = run_scenario(scenario, cfg, out_dir=None if out is None else out / name, annotate=False,
                            write_frames=False, cache=cache)
-    t = metrics["tracking"]
-    got = (f"{_fmt(t['mota'])} / {_fmt(t['idf1'])}  (misses {t['misses']}, FP {t['false_positives']}, "
-           f"id switches {t['id_switches']} of {t['objects']})")
-    return f"{name} seed {scenario.seed}, whole run, MOTA / IDF1", f">= {required:.2f} each", got
+    return f"{name} seed {scenario.seed}, whole run, MOTA / IDF1", f">= {required:.2f} each", _scores(metrics["tracking"])
 
 
 def pooled_rows(seeds: list[int], frames: int, cfg: PipelineConfig, cache: FrameCache | None,
@@ -64,11 +66,8 @@ def pooled_rows(seeds: list[int], frames: int, cfg: PipelineConfig, cache: Frame
     result = run_bench(BenchConfig(scenarios=[SCENARIOS / "dense_traffic.yaml"], trackers=[tracker], frames=frames,
                                    seeds=seeds, pipeline=cfg, cache=cache),
                        out_dir=None if out is None else out / "dense_traffic_pooled")
-    s = result["trackers"][tracker]
     label = f"dense_traffic seeds {_seed_text(seeds)}, {frames} frames each, pooled"
-    rows = [(f"{label}, MOTA / IDF1", f">= {TARGET:.2f} each",
-             f"{_fmt(s['mota'])} / {_fmt(s['idf1'])}  (misses {s['misses']}, FP {s['false_positives']}, "
-             f"id switches {s['id_switches']} of {s['objects']})")]
+    rows = [(f"{label}, MOTA / IDF1", f">= {TARGET:.2f} each", _scores(result["trackers"][tracker]))]
     boot = result["bootstrap"]
     if boot:
         b = boot["trackers"][tracker]
@@ -95,10 +94,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.frames <= 0:
         ap.error(f"--frames: must be a positive integer, got {args.frames}")
-    try:
-        seeds = parse_seeds(args.seeds)
-    except UserError as e:
-        ap.error(str(e))
+    seeds = parse_seeds(args.seeds)     # a bad item: one line, exit 2 (run_script)
     cfg = PipelineConfig(detector=ComponentConfig(name=args.detector), tracker=ComponentConfig(name=args.tracker))
     cfg.validate_names()                # an unknown name: one line, before anything renders
     cache = None if args.no_cache else FrameCache(default_dir())
