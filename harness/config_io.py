@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
 
-from pydantic import BaseModel, ValidationError
+from pydantic import BaseModel, Field, Strict, ValidationError
 
 M = TypeVar("M", bound=BaseModel)
+
+#: A seed read from a config file: a non-negative integer, strictly (``true``, ``"7"`` and ``7.0`` are refused).
+Seed = Annotated[int, Strict(), Field(ge=0)]
+#: A name that becomes one directory name (a scenario's default output ``runs/NAME``): letters, digits,
+#: ``_ . + -``, not starting with ``.`` -- never empty, ``.``, ``..``, hidden, absolute or with a ``/``.
+SAFE_NAME = r"^[A-Za-z0-9_\-][A-Za-z0-9_.+\-]*$"
 
 
 def validate_config(model: type[M], data: Any, source: str | Path, error: type[Exception], what: str) -> M:

@@ -8,13 +8,14 @@ scenario is *relative to the ego lane* (-1 = one lane to the left, +1 = right).
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
+from pydantic import BaseModel, ConfigDict, Field, FiniteFloat, field_validator, model_serializer, model_validator
 
 from harness.camera_motion import CameraMotion
-from harness.config_io import validate_config
+from harness.config_io import SAFE_NAME, Seed, validate_config
 from harness.road_plan import MAX_TURN_RAD, MIN_RADIUS_M
 from harness.road_profile import MAX_GRADE
 
@@ -253,8 +254,8 @@ class Camera(_Model):
 
 
 class Render(_Model):
-    palette_seed: int = 0
-    light_direction: tuple[float, float, float] = Field((-0.4, 0.3, -1.0), description="direction the light travels, in the road frame (x along the road, y left, z up)")
+    palette_seed: Seed = 0
+    light_direction: tuple[FiniteFloat, FiniteFloat, FiniteFloat] = Field((-0.4, 0.3, -1.0), description="direction the light travels, in the road frame (x along the road, y left, z up)")
     light_intensity: float = Field(3.0, gt=0, le=20)
     noise_std: float = Field(0.0, ge=0, le=50, description="Gaussian sensor noise, 8-bit levels")
     blur_px: float = Field(0.0, ge=0, le=10, description="Gaussian blur sigma, pixels")
@@ -281,8 +282,8 @@ class Conditions(_Model):
 
 
 class Scenario(_Model):
-    name: str
-    seed: int = 0
+    name: str = Field(max_length=80, description="also the default output directory runs/NAME")
+    seed: Seed = 0
     duration_s: float = Field(10.0, gt=0, le=3600)
     fps: float = Field(15.0, ge=1, le=120)
     road: Road = Road()
@@ -301,6 +302,14 @@ class Scenario(_Model):
     @property
     def n_frames(self) -> int:
         return int(round(self.duration_s * self.fps))
+
+    @field_validator("name")
+    @classmethod
+    def _safe_name(cls, name: str) -> str:
+        if not re.fullmatch(SAFE_NAME, name):   # not re.match: its "$" matches before a final newline
+            raise ValueError(f"{name!r} is not a plain name (letters, digits, _ . + -, not starting with '.'; "
+                             "it names the output directory runs/NAME)")
+        return name
 
     @model_validator(mode="after")
     def _consistent(self) -> "Scenario":
@@ -329,6 +338,18 @@ class Scenario(_Model):
                 if abs(v.lane) != 1:
                     raise ValueError(f"events.{i}: cut_in vehicle {e.vehicle!r} must start in a lane adjacent to the ego's")
         return self
+
+
+def frames_to_simulate(scenario: Scenario, frames: int | None, source: str | Path, verb: str = "render") -> int:
+    """``--frames N`` checked against ``scenario`` (1 .. duration_s * fps; None: all); :class:`UserError` otherwise."""
+    if frames is not None and frames <= 0:
+        raise UserError(f"--frames: must be a positive integer, got {frames}")
+    if scenario.n_frames <= 0:
+        raise UserError(f"{source}: duration_s * fps gives no frames")
+    if frames is not None and frames > scenario.n_frames:
+        raise UserError(f"--frames: {frames} exceeds the scenario's {scenario.n_frames} frames "
+                        f"(duration_s * fps); raise duration_s in {source} to {verb} more")
+    return scenario.n_frames if frames is None else frames
 
 
 def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -36,6 +37,50 @@ from monorarp.errors import UserError
 
 class CameraError(UserError, ValueError):
     """An impossible or unreadable camera calibration."""
+
+
+MAX_PIXELS = 1_000_000   # a camera file's width / height at most (a bound far above any camera's)
+_FINITE = ("fx", "fy", "cx", "cy", "height_m", "pitch_rad", "lateral_offset_m", "forward_offset_m", "roll_rad")
+# the numeric fields of a camera file; every one given is checked, also when another field takes precedence
+_FILE_NUMBERS = ("fx", "fy", "cx", "cy", "hfov_deg", "height_m", "pitch_rad", "pitch_deg", "horizon_row",
+                 "lateral_offset_m", "forward_offset_m", "roll_rad", "roll_deg")
+
+
+def _show(value: object) -> str:
+    """``repr(value)``, shortened to fit an error line."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _number(value: object, name: str) -> float:
+    """``value`` as a finite float; :class:`CameraError` naming ``name`` for a bool, a string, NaN, inf, ..."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise CameraError(f"{name} must be a number, got {_show(value)}")
+    try:
+        x = float(value)
+    except OverflowError:   # an integer beyond float range
+        x = math.inf
+    if not math.isfinite(x):
+        raise CameraError(f"{name} must be finite, got {_show(value)}")
+    return x
+
+
+def _pixels(value: object, name: str) -> int:
+    """``value`` as a whole number of pixels, 1..MAX_PIXELS (640 or 640.0; not 640.5, true or "640")."""
+    whole = isinstance(value, numbers.Integral) and not isinstance(value, bool) or (
+        isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer())
+    if not (whole and 0 < value <= MAX_PIXELS):
+        raise CameraError(f"{name} must be a whole number of pixels, 1..{MAX_PIXELS}, got {_show(value)}")
+    return int(value)
+
+
+def _matrix3(value: object, name: str) -> np.ndarray:
+    """``value`` (3 rows of 3 numbers) as a 3x3 float array; :class:`CameraError` naming the bad entry."""
+    rows = value.tolist() if isinstance(value, np.ndarray) else value
+    if not (isinstance(rows, (list, tuple)) and len(rows) == 3
+            and all(isinstance(r, (list, tuple)) and len(r) == 3 for r in rows)):
+        raise CameraError(f"{name} must be a 3x3 matrix (3 rows of 3 numbers), got {_show(value)}")
+    return np.array([[_number(v, f"{name}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(rows)])
 
 
 @dataclass(frozen=True)
@@ -55,13 +100,18 @@ class CameraModel:
     roll_rad: float = 0.0
 
     def __post_init__(self) -> None:
-        problems = []
+        problems = [f"{name} must be finite, got {getattr(self, name)}" for name in _FINITE
+                    if not math.isfinite(getattr(self, name))]
+        if problems:    # NaN or inf would pass (or confuse) the range checks below
+            raise CameraError("; ".join(problems))
         if self.width <= 0 or self.height <= 0:
             problems.append(f"resolution must be positive, got {self.width}x{self.height}")
         if not (self.fx > 0 and self.fy > 0):
             problems.append(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
-        if not (math.isfinite(self.cx) and math.isfinite(self.cy)):
-            problems.append("principal point must be finite")
+        for name, size in (("cx", self.width), ("cy", self.height)):   # the image spans -0.5..size-0.5 px
+            if not -0.5 <= getattr(self, name) <= size - 0.5:
+                problems.append(f"principal point {name}={getattr(self, name)} px lies outside the image "
+                                f"(-0.5..{size - 0.5})")
         if not self.height_m > 0:
             problems.append(f"mounting height must be positive, got {self.height_m} m")
         if not abs(self.pitch_rad) < math.radians(45):
@@ -180,14 +230,15 @@ class CameraModel:
         Accepted keys: width, height; either K (3x3) or fx, fy, cx, cy, or hfov_deg;
         height_m; pitch_rad or pitch_deg, or horizon_row (px; pitch = atan((cy - horizon_row) / fy));
         lateral_offset_m; forward_offset_m; roll_rad or roll_deg (default 0). When both a pitch and ``horizon_row`` are given
-        (as in ``camera.json``) they must agree within 1 px.
+        (as in ``camera.json``) they must agree within 1 px, and fx/fy/cx/cy given with K must equal K's.
+        Every numeric field must be a finite number (not a bool or a string; width and height whole pixels);
+        an optional field that is null counts as not given.
         """
+        d = {k: v for k, v in d.items() if v is not None or k in ("width", "height", "height_m")}   # null: not given
         try:
             cam = cls._from_dict_intrinsics(d, source)
             if "horizon_row" in d:
-                row = float(d["horizon_row"])
-                if not math.isfinite(row):
-                    raise CameraError(f"horizon_row must be finite, got {d['horizon_row']!r}")
+                row = _number(d["horizon_row"], "horizon_row")
                 if "pitch_rad" not in d and "pitch_deg" not in d:
                     if not 0 <= row <= cam.height - 1:
                         raise CameraError(f"horizon_row {row:.1f} px lies outside the image (0..{cam.height - 1})")
@@ -208,25 +259,25 @@ class CameraModel:
     def _from_dict_intrinsics(cls, d: dict, source: str) -> "CameraModel":
         """:meth:`from_dict` without ``horizon_row`` (pitch 0 when no pitch field is given); its errors
         are given their one-line form by :meth:`from_dict`."""
-        width, height = int(d["width"]), int(d["height"])
-        if "pitch_rad" in d:
-            pitch = float(d["pitch_rad"])
-        else:
-            pitch = math.radians(float(d.get("pitch_deg", 0.0)))
-        mount = dict(height_m=float(d["height_m"]), pitch_rad=pitch,
-                     lateral_offset_m=float(d.get("lateral_offset_m", 0.0)),
-                     forward_offset_m=float(d.get("forward_offset_m", 0.0)),
-                     roll_rad=float(d["roll_rad"]) if "roll_rad" in d else math.radians(float(d.get("roll_deg", 0.0))))
-        if "K" in d:
-            K = np.asarray(d["K"], dtype=float)
-            if K.shape != (3, 3):
-                raise CameraError(f"{source}: K must be 3x3, got shape {K.shape}")
+        width, height = _pixels(d["width"], "width"), _pixels(d["height"], "height")
+        n = {k: _number(d[k], k) for k in _FILE_NUMBERS if k in d}
+        K = _matrix3(d["K"], "K") if "K" in d else None
+        pitch = n["pitch_rad"] if "pitch_rad" in n else math.radians(n.get("pitch_deg", 0.0))
+        roll = n["roll_rad"] if "roll_rad" in n else math.radians(n.get("roll_deg", 0.0))
+        mount = dict(height_m=n["height_m"], pitch_rad=pitch,
+                     lateral_offset_m=n.get("lateral_offset_m", 0.0),
+                     forward_offset_m=n.get("forward_offset_m", 0.0), roll_rad=roll)
+        if K is not None:
+            for name, (i, j) in (("fx", (0, 0)), ("fy", (1, 1)), ("cx", (0, 2)), ("cy", (1, 2))):
+                # camera.json holds both: an edit to one of them alone must not pass unnoticed
+                if name in n and not math.isclose(n[name], K[i, j], rel_tol=1e-9, abs_tol=1e-6):
+                    raise CameraError(f"{name} {n[name]} disagrees with K[{i}][{j}] {K[i, j]}; give one of them")
             return cls(width, height, K[0, 0], K[1, 1], K[0, 2], K[1, 2], **mount)
-        if "fx" in d:
-            return cls(width, height, float(d["fx"]), float(d.get("fy", d["fx"])),
-                       float(d.get("cx", (width - 1) / 2)), float(d.get("cy", (height - 1) / 2)), **mount)
-        if "hfov_deg" in d:
-            return cls.from_fov(width, height, float(d["hfov_deg"]), **mount)
+        if "fx" in n:
+            return cls(width, height, n["fx"], n.get("fy", n["fx"]),
+                       n.get("cx", (width - 1) / 2), n.get("cy", (height - 1) / 2), **mount)
+        if "hfov_deg" in n:
+            return cls.from_fov(width, height, n["hfov_deg"], **mount)
         raise CameraError(f"{source}: needs K, fx/fy/cx/cy or hfov_deg")
 
     def save(self, path: str | Path) -> None:

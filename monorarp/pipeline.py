@@ -122,12 +122,21 @@ class Pipeline:
         cfg.validate_names()   # unknown names fail before any model is loaded
         from monorarp.detection import build_detector
 
+        from monorarp.ego_speed.geometry import EgoSpeedError, EgoSpeedStageError
+
         def build(kind: str, comp: ComponentConfig | None) -> Any:
             return None if comp is None else registry.build(kind, comp.name, comp.kwargs, camera)
 
+        def build_ego_speed() -> Any:   # e.g. a camera that sees too little road: say which stage fails
+            try:
+                return build("ego_speed", cfg.ego_speed)
+            except EgoSpeedError as e:
+                raise EgoSpeedStageError(f"ego-speed stage {cfg.ego_speed.name!r} (lane-marking ego-speed "
+                                         f"estimator) cannot run: {e}") from None
+
         return cls(detector=build_detector(cfg.detector, camera), tracker=build("tracker", cfg.tracker),
                    state=build("state", cfg.state), risk=build("risk", cfg.risk),
-                   ego_speed=build("ego_speed", cfg.ego_speed), warning=build("warning", cfg.warning),
+                   ego_speed=build_ego_speed(), warning=build("warning", cfg.warning),
                    horizon=build("horizon", cfg.horizon))
 
     def reset(self) -> None:

@@ -11,7 +11,7 @@ never a traceback and never unbounded memory or time:
   strict UTF-8 (a leading BOM is dropped), OS errors (missing file, directory,
   permission, name too long) reported with their reason.
 * :func:`parse_yaml` -- YAML 1.1 *safe* subset restricted to JSON types: mappings,
-  sequences, strings, numbers, booleans, null. Tags that build other types
+  sequences, strings, numbers, booleans, null. A key given twice in one mapping is refused. Tags that build other types
   (``!!python/*``, ``!!binary``, ``!!set``, ``!!omap``, ``!!pairs``, ``!!timestamp``)
   are refused; unquoted dates stay strings; integers have at most :data:`MAX_INT_BITS`
   bits. Nesting is limited to
@@ -105,6 +105,26 @@ class _ConfigLoader(yaml.SafeLoader):
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        """As SafeLoader's, refusing a key given twice in one mapping (YAML says keys are unique; PyYAML
+        would keep the last). Keys brought in by a merge (``<<: *base``) may be overridden, as YAML says."""
+        if isinstance(node, MappingNode):
+            first: dict[Any, Any] = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=False)
+                try:
+                    earlier = first.get(key)
+                except TypeError:   # an unhashable key: SafeLoader reports it
+                    continue
+                if earlier is not None:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"duplicate key {key!r} (first at line {earlier.start_mark.line + 1})",
+                        key_node.start_mark)
+                first[key] = key_node
+        return super().construct_mapping(node, deep=deep)
 
 
 def _refuse_tag(loader: yaml.SafeLoader, node: Any) -> Any:

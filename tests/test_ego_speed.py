@@ -223,6 +223,36 @@ def test_camera_seeing_no_ground_is_rejected():
         GroundTrackEgoSpeed(cam)
 
 
+@pytest.mark.parametrize("name", ["ground_track", "lsd_period"])
+def test_pipeline_names_the_ego_speed_stage_that_cannot_run(name):
+    from monorarp.ego_speed.geometry import EgoSpeedStageError
+    from monorarp.pipeline import Pipeline
+
+    cam = CameraModel.from_fov(640, 360, 70.0, 1.3, np.radians(-21.0))
+    cfg = {"ego_speed": {"name": name}}   # the other stages: their defaults
+    with pytest.raises(EgoSpeedStageError, match=f"^ego-speed stage '{name}' \\(lane-marking ego-speed estimator\\) "
+                                                 "cannot run: "):
+        Pipeline.from_config(cfg, cam)
+    Pipeline.from_config({**cfg, "ego_speed": None}, cam)   # without the stage the camera is fine
+
+
+def test_run_command_names_scenario_stage_and_way_out(tmp_path, capsys):
+    """A very wide camera sees under 8 rows of road 3..30 m ahead: `monorarp run` says which stage and file."""
+    pytest.importorskip("harness.run")
+    import yaml
+
+    from monorarp.cli import main
+
+    p = tmp_path / "wide.yaml"
+    p.write_text(yaml.safe_dump({"name": "wide", "duration_s": 1.0, "camera": {"hfov_deg": 178}}))
+    out = tmp_path / "out"
+    assert main(["run", str(p), "--out", str(out), "--detector", "oracle"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"monorarp run: error: {p}: ego-speed stage 'ground_track' "
+                                               "(lane-marking ego-speed estimator) cannot run: camera sees fewer")
+    assert err[0].endswith("; --ego-speed none runs without it") and not out.exists()
+
+
 # ------------------------------------------------------------------ rendered frames
 @pytest.fixture(scope="module")
 def rendered():

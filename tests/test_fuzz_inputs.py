@@ -633,6 +633,9 @@ def test_limits_are_documented_values():
     ("x: !!python/object/apply:os.system ['true']", "could not determine a constructor"),
     ("x: !!bool maybe", "invalid YAML"),
     ("a: &a [*a]", "recursive alias"),
+    ("a: 1\nb: 2\na: 3\n", r"^f\.yaml: invalid YAML at line 3: duplicate key 'a' \(first at line 1\)$"),
+    ("a:\n  - {x: 1, y: 2, x: 1}\n", "line 2: duplicate key 'x'"),
+    ("a: &m {x: 1}\nb: {<<: *m, x: 2}\n", None),                        # a merge's keys may be overridden
 ])
 def test_yaml_reader_cases(tmp_path, text, message):
     from monorarp.readers import parse_yaml
@@ -643,6 +646,18 @@ def test_yaml_reader_cases(tmp_path, text, message):
         return
     with pytest.raises(UserError, match=message):
         parse_yaml(text, "f.yaml")
+
+
+def test_camera_file_with_a_duplicate_key_names_it(tmp_path):
+    import re
+
+    from monorarp.camera import CameraError, CameraModel
+
+    cam = tmp_path / "cam.yaml"
+    cam.write_text(yaml.safe_dump(CAMERA_YAML, sort_keys=False) + "height_m: 9.0\n")
+    line = len(cam.read_text().splitlines())
+    with pytest.raises(CameraError, match=rf"^{re.escape(str(cam))}: .*line {line}: duplicate key 'height_m' \(first at line 4\)"):
+        CameraModel.load(cam)
 
 
 # ------------------------------------------------------------------------------ a real process

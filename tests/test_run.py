@@ -159,6 +159,7 @@ def scenario_file(tmp_path):
     (["--detector", "oracle", "--oracle-miss-rate", "2"], "miss rate"),
     (["--detector", "oracle", "--refine-bottom", "on"], "--refine-bottom applies to the CenterNet detector"),
     (["--frames", "0"], "--frames"),
+    (["--frames", "16"], "--frames: 16 exceeds the scenario's 15 frames (duration_s * fps)"),   # 1 s x 15 fps
 ])
 def test_bad_input_exits_2_and_writes_nothing(scenario_file, tmp_path, capsys, extra, message):
     out = tmp_path / "out"

@@ -32,6 +32,23 @@ BAD = [
      ["traffic.warmup_s", "without events"]),
     ("warm_up_too_long", "name: x\ntraffic:\n  warmup_s: 61\n", ["traffic.warmup_s", "60"]),
     ("missing_name", "seed: 3\n", ["name", "required"]),
+    ("seed_negative", "name: x\nseed: -1\n", ["seed", "greater than or equal to 0"]),
+    ("seed_bool", "name: x\nseed: true\n", ["seed", "valid integer"]),
+    ("seed_string", "name: x\nseed: \"7\"\n", ["seed", "valid integer"]),
+    ("palette_seed_negative", "name: x\nrender: {palette_seed: -2}\n", ["render.palette_seed"]),
+    ("name_absolute", "name: /tmp/x\n", ["name", "not a plain name"]),
+    ("name_escapes", "name: ../escaped\n", ["name", "not a plain name"]),
+    ("name_empty", "name: ''\n", ["name", "not a plain name"]),
+    ("name_newline", "name: \"x\\n\"\n", ["name", "not a plain name"]),
+    ("light_direction_nan", "name: x\nrender: {light_direction: [.nan, 0, -1]}\n",
+     ["render.light_direction.0", "finite"]),
+    ("light_direction_inf", "name: x\nrender: {light_direction: [0, .inf, -1]}\n",
+     ["render.light_direction.1", "finite"]),
+    ("light_direction_zero", "name: x\nrender: {light_direction: [0, 0, 0]}\n", ["light_direction", "non-zero"]),
+    ("duplicate_key", "name: x\nseed: 1\nseed: 2\n", ["line 3", "duplicate key 'seed'", "first at line 2"]),
+    ("duplicate_nested_key", "name: x\nroad:\n  lanes: 3\n  lanes: 4\n",
+     ["line 4", "duplicate key 'lanes'", "first at line 3"]),
+    ("duplicate_flow_key", "name: x\nvehicles: [{name: a, distance_m: 10, name: b}]\n", ["duplicate key 'name'"]),
     ("not_a_mapping", "- a\n- b\n", ["mapping"]),
     ("empty_file", "", ["mapping"]),
 ]
@@ -204,3 +221,45 @@ def test_yaml_anchor_and_comment_friendly(tmp_path):
         """))
     s = load_scenario(path)
     assert [v.name for v in s.vehicles] == ["a", "b"] and s.vehicles[1].lane == -1
+
+
+def test_every_shipped_yaml_parses_and_every_shipped_scenario_loads():
+    """Recursively: no shipped config has a duplicate key, every scenario has a valid (directory-safe) name."""
+    from pathlib import Path
+
+    from harness.scorecard.protocols import load_protocol
+    from harness.sweep.spec import load_sweep_spec
+    from monorarp.readers import read_yaml
+
+    root = Path(__file__).resolve().parents[1] / "scenarios"
+    kinds = {"scenario": 0, "sweep": 0, "protocol": 0}
+    for path in sorted(root.rglob("*.yaml")):
+        data = read_yaml(path, "config")
+        if "suite" in data:
+            load_protocol(path)
+            kinds["protocol"] += 1
+        elif {"variants", "scenarios"} & data.keys():
+            load_sweep_spec(path)
+            kinds["sweep"] += 1
+        else:
+            assert load_scenario(path).name == data["name"]
+            kinds["scenario"] += 1
+    assert min(kinds.values()) >= 3, kinds
+
+
+@pytest.mark.parametrize("name", ["a", "highway_cruise", "_x", "v1.2+fog", "A-b"])
+def test_plain_scenario_names_are_accepted(tmp_path, name):
+    path = tmp_path / "s.yaml"
+    path.write_text(f"name: '{name}'\n")
+    assert load_scenario(path).name == name
+
+
+def test_merged_keys_may_be_overridden_but_not_given_twice():
+    from monorarp.errors import UserError
+    from monorarp.readers import parse_yaml
+
+    assert parse_yaml("a: &b {x: 1, y: 2}\nc: {<<: *b, x: 3}\n", "m.yaml")["c"] == {"x": 3, "y": 2}
+    with pytest.raises(UserError, match=r"^m\.yaml: invalid YAML at line 4: duplicate key 'x' \(first at line 3\)$"):
+        parse_yaml("a: &b {x: 1}\nc:\n  x: 3\n  x: 4\n", "m.yaml")
+    with pytest.raises(UserError, match="duplicate key 'k'"):   # an alias used twice as a key
+        parse_yaml("- &k k\n- {*k : 1, *k : 2}\n", "m.yaml")

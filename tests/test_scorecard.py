@@ -90,6 +90,9 @@ def test_contact_time_closed_forms():
     ({"test": "X", "kind": "rear_end", "speed": 3}, "speed"),
     ({"test": "X", "kind": "rear_end", "target_motion": "stationary", "ego_speed_kmh": [50], "required_ttc_s": 2.0,
       "warmup_s": 4.0}, "warmup_s"),
+    ({"test": "X", "kind": "nominal", "scenarios": ["s.yaml"], "seeds": [-1]}, "tests.0.seeds.0"),
+    ({"test": "X", "kind": "nominal", "scenarios": ["s.yaml"], "seeds": [True]}, "tests.0.seeds.0"),
+    ({"test": "X", "kind": "nominal", "scenarios": ["s.yaml"], "seeds": ["7"]}, "tests.0.seeds.0"),
 ])
 def test_impossible_protocols_name_the_field(tmp_path, test, field):
     p = tmp_path / "bad.yaml"

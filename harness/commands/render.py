@@ -43,19 +43,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from harness.scenario import ScenarioError, load_scenario
+    from harness.scenario import ScenarioError, frames_to_simulate, load_scenario
 
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     if not 0 <= args.crf <= 51:
         raise UserError(f"--crf: must be in 0..51, got {args.crf}")
     scenario = load_scenario(args.scenario)
-    if scenario.n_frames <= 0:
-        raise UserError(f"{args.scenario}: duration_s * fps gives no frames")
-    if args.frames is not None and args.frames > scenario.n_frames:
-        raise UserError(f"--frames: {args.frames} exceeds the scenario's {scenario.n_frames} frames "
-                        f"(duration_s * fps); raise duration_s in {args.scenario} to render more")
-    n_frames = args.frames if args.frames is not None else scenario.n_frames
+    n_frames = frames_to_simulate(scenario, args.frames, args.scenario, "render")
     try:
         stats = render_scenario(scenario, args.out, n_frames, crf=args.crf)
     except ScenarioError as e:  # found by the simulation: make sure the message names the file

@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="risk scoring: a frame is positive when a collision or near miss follows within S s "
                         "(default 10)")
     p.add_argument("--frames", type=int, default=None, metavar="N",
-                   help="number of frames (default: the scenario's duration x fps)")
+                   help="run only the first N frames (1 .. duration_s * fps; default: all)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help="output directory (default: runs/<scenario name>; a previous run there is replaced)")
     p.add_argument("--threaded", action="store_true", help="one thread per stage (as in the paper)")
@@ -46,9 +46,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from harness.run import run_scenario
-    from harness.scenario import ScenarioError, load_scenario
+    from harness.scenario import ScenarioError, frames_to_simulate, load_scenario
     from harness.scoring.evaluate import EvalConfig
     from harness.scoring.tables import summary_table
+    from monorarp.ego_speed.geometry import EgoSpeedStageError
 
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
@@ -58,11 +59,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--risk-horizon: must be positive (s), got {args.risk_horizon}")
     cfg = pipeline_config(args)
     scenario = load_scenario(args.scenario)
-    if (args.frames or scenario.n_frames) <= 0:
-        raise UserError(f"{args.scenario}: duration_s * fps gives no frames")
+    n_frames = frames_to_simulate(scenario, args.frames, args.scenario, "run")
     out = args.out if args.out is not None else Path("runs") / scenario.name
     try:
-        metrics = run_scenario(scenario, cfg, n_frames=args.frames, out_dir=out, threaded=args.threaded,
+        metrics = run_scenario(scenario, cfg, n_frames=n_frames, out_dir=out, threaded=args.threaded,
                                annotate=not args.no_video, write_frames=not args.no_video,
                                gps_speed=args.gps_speed,
                                eval_config=EvalConfig(warning_threshold_s=args.warning_threshold,
@@ -70,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
     except ScenarioError as e:   # found by the simulation: make sure the message names the file
         msg = str(e)
         raise ScenarioError(msg if msg.startswith(str(args.scenario)) else f"{args.scenario}: {msg}") from None
+    except EgoSpeedStageError as e:   # e.g. the scenario's camera sees too little road for it
+        raise EgoSpeedStageError(f"{args.scenario}: {e}; --ego-speed none runs without it") from None
     print(summary_table(metrics))
     print(f"\nwrote {out}/")
     return 0

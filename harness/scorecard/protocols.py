@@ -28,7 +28,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from harness.config_io import validate_config
+from harness.config_io import Seed, validate_config
 from harness.scenario import ScenarioError, load_scenario_dict
 from monorarp.errors import UserError
 from monorarp.readers import read_yaml
@@ -66,7 +66,7 @@ class Test(_Model):
     trials: int | None = Field(None, ge=1, le=1000)
     min_trials_passed: int | None = Field(None, ge=1)
     scenarios: list[str] = Field(default_factory=list)
-    seeds: list[int] = Field(default_factory=list)
+    seeds: list[Seed] = Field(default_factory=list)
     duration_s: float | None = Field(None, gt=0, le=3600)
     warmup_s: float = Field(0.0, ge=0, le=60)
 

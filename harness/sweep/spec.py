@@ -30,7 +30,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from harness.config_io import validate_config
+from harness.config_io import Seed, validate_config
 from harness.scenario import Scenario
 from monorarp.config_options import WARNING_THRESHOLD_S
 from monorarp.errors import UserError
@@ -239,7 +239,7 @@ GridValue = bool | int | float | str | list[bool | int | float | str] | None
 class SweepSpec(_Model):
     name: str = Field(pattern=_NAME, max_length=80)
     scenarios: list[ScenarioRef] = Field(min_length=1)
-    seeds: list[int] | None = Field(None, min_length=1)
+    seeds: list[Seed] | None = Field(None, min_length=1)
     grid: dict[str, list[GridValue]] = {}
     overrides: dict[str, Any] = {}
     frames: int | None = Field(None, gt=0)

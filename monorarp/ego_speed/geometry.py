@@ -22,6 +22,11 @@ class EgoSpeedError(UserError, ValueError):
     """Impossible ego-speed estimator settings (names the parameter and the reason)."""
 
 
+class EgoSpeedStageError(EgoSpeedError):
+    """The pipeline's ego-speed stage cannot be built (:meth:`monorarp.pipeline.Pipeline.from_config`): the
+    message names the stage; a command adds its file and that ``--ego-speed none`` runs without it."""
+
+
 def row_distance(camera: CameraModel, v: np.ndarray) -> np.ndarray:
     """Ground distance ahead ``y`` (m, ego frame) seen at continuous image rows ``v``; NaN above the horizon."""
     v = np.asarray(v, dtype=float)
