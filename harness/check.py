@@ -197,8 +197,10 @@ def parse_baseline(data: Any, source: str | Path) -> dict:
 
 def load_baseline(path: str | Path) -> dict:
     path = Path(path)
-    if not checked_exists(path) or not path.is_file():
+    if not checked_exists(path):
         raise CheckInputError(f"{path}: no such baseline file")
+    if not path.is_file():
+        raise CheckInputError(f"{path}: not a file (a baseline is one JSON file)")
     return parse_baseline(read_json(path, "baseline", CheckInputError), path)
 
 
@@ -301,6 +303,11 @@ def _order(rules: Sequence[Rule], name: str) -> tuple[int, str]:
 
 def write_baseline(path: str | Path, data: Mapping) -> None:
     path = Path(path)
+    blocker = next((p for p in path.parents if p.exists() or p.is_symlink()), None)
+    if blocker is not None and not blocker.is_dir():
+        raise CheckInputError(f"{path}: cannot write baseline: {blocker} is not a directory")
+    if path.is_dir():
+        raise CheckInputError(f"{path}: cannot write baseline: it is a directory (give a file name)")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         write_json_atomic(path, data, indent=2)

@@ -16,7 +16,11 @@ import argparse
 import importlib.util
 import os
 import re
+import signal
 import sys
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from importlib.metadata import PackageNotFoundError, distribution, entry_points, requires
 
 from monorarp import __version__
@@ -96,6 +100,33 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived (``kill``, ``timeout``, a container stopping): unwinds as Ctrl-C does, so the
+    temporary output of the command is removed and nothing half-written stays."""
+
+
+_SIGTERM_SEEN = threading.Event()
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    _SIGTERM_SEEN.set()   # a C call may wrap the exception in its own (ctypes.ArgumentError): main checks this
+    raise Terminated
+
+
+@contextmanager
+def _sigterm_unwinds() -> Iterator[None]:
+    """While the command runs, SIGTERM raises :class:`Terminated` (main thread only; restored after)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _SIGTERM_SEEN.clear()
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -107,7 +138,8 @@ def main(argv: list[str] | None = None) -> int:
         if missing is not None:
             return _needs_harness(args.command, missing)
     try:
-        return int(args.func(args) or 0)
+        with _sigterm_unwinds():
+            return int(args.func(args) or 0)
     except UserError as e:
         message = " ".join(str(e).split())
         print(f"monorarp {args.command}: error: {message}", file=sys.stderr)
@@ -123,6 +155,17 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"monorarp {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception:
+        if not _SIGTERM_SEEN.is_set():
+            raise
+        return _terminated(args.command)
+    except Terminated:
+        return _terminated(args.command)
+
+
+def _terminated(command: str) -> int:
+    print(f"monorarp {command}: terminated", file=sys.stderr)
+    return 128 + signal.SIGTERM
 
 
 if __name__ == "__main__":

@@ -162,7 +162,10 @@ def _chmod_default(path: Path, mode: int) -> None:
 def _check_replaceable(target: Path, owned_names: Collection[str]) -> None:
     if not target.exists() and not target.is_symlink():
         return
-    if target.is_symlink() or not target.is_dir():
+    if target.is_symlink():
+        raise OutputError(f"{target}: output path is a symbolic link (the output would replace the link); "
+                          f"give the path it points to, {os.path.realpath(target)}")
+    if not target.is_dir():
         raise OutputError(f"{target}: output path exists and is not a directory")
     foreign = sorted(p.name for p in target.iterdir() if p.name not in owned_names)
     if foreign:
@@ -185,12 +188,22 @@ def atomic_output_dir(path: str | Path, *, owned_names: Collection[str] = ()) ->
     previous run under a ``.NAME.old-*`` sibling, never a half-written ``path``).
     On any exception (including KeyboardInterrupt) the temporary directory is
     removed and ``path`` is left untouched.
+
+    A ``path`` that exists but cannot be renamed (a mount point such as a container
+    volume, or a directory in a parent we may not write) is probed before anything is
+    computed; its new contents are then built in a temporary directory inside it and
+    moved in entry by entry after its previous entries are removed (not atomic as a whole).
     """
     target = Path(path).absolute()
     if target.name in ("", ".", ".."):
         raise OutputError(f"{path}: not a usable output directory name")
     owned = frozenset(owned_names)
     _check_replaceable(target, owned)
+
+    if target.is_dir() and not _renamable(target):
+        with _output_dir_in_place(target, owned) as tmp:
+            yield tmp
+        return
 
     created_parents: list[Path] = []
     parent = target.parent
@@ -213,6 +226,39 @@ def atomic_output_dir(path: str | Path, *, owned_names: Collection[str] = ()) ->
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         _remove_empty(created_parents)
+        raise
+
+
+def _renamable(target: Path) -> bool:
+    """Whether the existing directory ``target`` can be renamed (tried: renamed away and back at once)."""
+    probe = target.with_name(f".{target.name}.probe-{uuid.uuid4().hex[:8]}")
+    try:
+        os.rename(target, probe)
+    except OSError:
+        return False
+    os.rename(probe, target)
+    return True
+
+
+@contextmanager
+def _output_dir_in_place(target: Path, owned: frozenset[str]) -> Iterator[Path]:
+    """:func:`atomic_output_dir` for a directory that cannot be renamed: staged inside it."""
+    try:
+        tmp = Path(tempfile.mkdtemp(dir=target, prefix=".tmp-"))
+    except OSError as e:
+        raise OutputError(f"{target}: cannot write in the output directory ({e.strerror or e})") from None
+    try:
+        _chmod_default(tmp, 0o777)
+        yield tmp
+        _check_replaceable(target, owned | {tmp.name})   # re-check: something may have appeared meanwhile
+        for p in target.iterdir():
+            if p != tmp:
+                shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
+        for p in tmp.iterdir():
+            os.rename(p, target / p.name)
+        tmp.rmdir()
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
         raise
 
 

@@ -129,6 +129,18 @@ def test_bad_results_exit_2(tmp_path, capsys):
     assert "no such baseline" in capsys.readouterr().err
 
 
+def test_baseline_path_that_is_a_directory_or_under_a_file(tmp_path, capsys):
+    results = sweep_dir(tmp_path, {"r1": METRICS})
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "afile").write_text("x")
+    for update in ([], ["--update"]):
+        assert check(results, "--baseline", tmp_path / "adir", *update) == 2
+        assert "not a file (a baseline is one JSON file)" in capsys.readouterr().err
+    assert check(results, "--baseline", tmp_path / "afile" / "b.json", "--update") == 2
+    assert f"{tmp_path / 'afile'} is not a directory" in capsys.readouterr().err
+    assert (tmp_path / "afile").read_text() == "x" and not any((tmp_path / "adir").iterdir())
+
+
 def test_single_run_directory(tmp_path):
     run = tmp_path / "r1"
     run.mkdir()

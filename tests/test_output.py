@@ -88,6 +88,41 @@ def test_atomic_dir_replaces_previous_run_only_on_success(tmp_path):
     assert sorted(x.name for x in tmp_path.iterdir()) == ["run"]  # old copy deleted
 
 
+def test_atomic_dir_on_a_directory_that_cannot_be_renamed(tmp_path, monkeypatch):
+    """A mount point (a container volume) cannot be renamed (EBUSY): its contents are replaced instead."""
+    import errno
+    import os
+
+    target = tmp_path / "volume"
+    target.mkdir()
+    (target / "f.txt").write_text("old")
+    (target / "sub").mkdir()
+    rename = os.rename
+
+    def no_rename_of_target(src, dst):
+        if os.fspath(src) == os.fspath(target):
+            raise OSError(errno.EBUSY, "Device or resource busy")
+        rename(src, dst)
+
+    monkeypatch.setattr(os, "rename", no_rename_of_target)
+    with pytest.raises(ValueError):
+        with atomic_output_dir(target, owned_names={"f.txt", "sub", "g.txt"}) as tmp:
+            assert tmp.parent == target
+            (tmp / "f.txt").write_text("half")
+            raise ValueError("fail mid-run")
+    assert sorted(x.name for x in target.iterdir()) == ["f.txt", "sub"] and (target / "f.txt").read_text() == "old"
+
+    with atomic_output_dir(target, owned_names={"f.txt", "sub", "g.txt"}) as tmp:
+        (tmp / "g.txt").write_text("new")
+    assert sorted(x.name for x in target.iterdir()) == ["g.txt"]
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["volume"]
+
+    (target / "precious.txt").write_text("keep")
+    with pytest.raises(OutputError, match="precious.txt"):
+        with atomic_output_dir(target, owned_names={"g.txt"}):
+            pytest.fail("must not start")
+
+
 def test_atomic_dir_refuses_foreign_directory_and_files(tmp_path):
     target = tmp_path / "home"
     target.mkdir()
@@ -105,6 +140,23 @@ def test_atomic_dir_refuses_foreign_directory_and_files(tmp_path):
     assert sorted(x.name for x in tmp_path.iterdir()) == ["file", "home"]
 
 
+def test_atomic_dir_refuses_a_symlink_naming_what_it_points_to(tmp_path):
+    import os
+
+    (tmp_path / "real").mkdir()
+    os.symlink(tmp_path / "real", tmp_path / "link")
+    import re
+
+    with pytest.raises(OutputError, match=f"symbolic link.*points to, {re.escape(os.path.realpath(tmp_path / 'real'))}$"):
+        with atomic_output_dir(tmp_path / "link"):
+            pytest.fail("must not start")
+    os.symlink("loop", tmp_path / "loop")
+    with pytest.raises(OutputError, match="symbolic link"):
+        with atomic_output_dir(tmp_path / "loop"):
+            pytest.fail("must not start")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "loop", "real"]
+
+
 def test_atomic_dir_permissions_are_ordinary(tmp_path):
     import os
 
@@ -116,3 +168,27 @@ def test_atomic_dir_permissions_are_ordinary(tmp_path):
         os.umask(mask)
     assert (tmp_path / "run").stat().st_mode & 0o777 == 0o755
     assert (tmp_path / "run" / "c.json").stat().st_mode & 0o777 == 0o644
+
+
+def test_sigterm_leaves_no_temporary_output(tmp_path):
+    """`kill`/`timeout` send SIGTERM: the command unwinds as on Ctrl-C (one line, exit 143, nothing left)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "r"
+    proc = subprocess.Popen([sys.executable, "-m", "monorarp.cli", "run", str(root / "scenarios" / "highway_cruise.yaml"),
+                             "--out", str(out)], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, env={**os.environ, "PYOPENGL_PLATFORM": "egl"})
+    deadline = time.monotonic() + 120
+    while not any(tmp_path.glob(".r.tmp-*/frames.mp4")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)   # the run is writing its frames into its temporary directory
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGTERM, err
+    assert err.strip().splitlines() == ["monorarp run: terminated"]
+    assert list(tmp_path.iterdir()) == []

@@ -82,6 +82,9 @@ def run_cli(*args: str) -> int:
     ({"variants": [{"name": "a", "detector": "oracle", "tracker_kwargs": {"bogus_kw": 1}}]}, "bogus_kw"),
     ({"scenarios": ["tiny.yaml", "no_such_scenario.yaml"]}, "no_such_scenario.yaml"),
     ({"seeds": [1, 1]}, "seeds"),
+    ({"seeds": [-1]}, "seeds.0: Input should be greater than or equal to 0"),
+    ({"seeds": [True]}, "seeds.0: Input should be a valid integer"),
+    ({"seeds": ["7"]}, "seeds.0: Input should be a valid integer"),
     ({"frames": 0}, "frames"),
     ({"grid": {"vehicles.nobody.speed_mps": [10]}}, "nobody"),
 ])
@@ -95,6 +98,19 @@ def test_bad_spec_exits_2_before_any_run(tmp_path, monkeypatch, capsys, change, 
     assert needle in err and str(spec) in err
     assert len(err.strip().splitlines()) == 1          # one line, no traceback
     assert fake.calls == [] and not out.exists()
+
+
+def test_duplicate_key_in_spec_exits_2_before_any_run(tmp_path, monkeypatch, capsys):
+    fake = FakeRun()
+    monkeypatch.setattr(harness.run, "run_scenario", fake)
+    spec = write_case(tmp_path, spec_dict())
+    spec.write_text(spec.read_text() + "frames: 6\n")   # spec_dict() already has frames: 4
+    line = len(spec.read_text().splitlines())
+    out = tmp_path / "out"
+    assert run_cli(spec, "--out", out) == 2
+    err = capsys.readouterr().err
+    assert f"{spec}: invalid YAML at line {line}: duplicate key 'frames'" in err
+    assert len(err.strip().splitlines()) == 1 and fake.calls == [] and not out.exists()
 
 
 def test_override_paths_follow_the_schema():
@@ -205,6 +221,26 @@ def test_resume_skips_finished_runs(tmp_path, monkeypatch):
     spec = write_case(tmp_path, spec_dict(variants=[{"name": "a", "detector": "oracle", "tracker": "particle",
                                                      "velocity": "difference"}]))
     assert run_cli(spec, "--out", out, "--resume") == 0 and len(second.calls) == 5
+
+
+def test_resume_refuses_runs_the_spec_does_not_have(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(harness.run, "run_scenario", FakeRun())
+    out = tmp_path / "out"
+    assert run_cli(write_case(tmp_path, spec_dict()), "--out", out) == 0
+    before = sorted(p.name for p in (out / "runs").iterdir())
+    assert len(before) == 4
+    assert run_cli(write_case(tmp_path, spec_dict(seeds=[1])), "--out", out, "--resume") == 2
+    err = capsys.readouterr().err
+    assert "2 run(s) not in this spec (tiny__seed2__" in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in (out / "runs").iterdir()) == before      # nothing deleted
+
+
+def test_spec_metric_in_no_run_is_reported(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(harness.run, "run_scenario", FakeRun())
+    spec = write_case(tmp_path, spec_dict(metrics=["distance.rel_err_median", "no.such.metric"]))
+    assert run_cli(spec, "--out", tmp_path / "out") == 0
+    err = capsys.readouterr().err
+    assert "misspelled?" in err and err.strip().endswith(": no.such.metric")
 
 
 # -------------------------------------------------- real runs: report, workers

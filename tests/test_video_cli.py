@@ -206,6 +206,25 @@ def test_variable_frame_rate_file_keeps_container_timestamps(tmp_path):
     assert np.abs(np.array(ts) - uniform).max() > 0.05   # index / fps would be visibly wrong here
 
 
+def test_matroska_with_longer_audio_decodes_to_its_end(clip, tmp_path, capsys):
+    """Matroska stores no frame count: OpenCV's estimate (duration x rate) counts the 3 s audio track."""
+    import imageio_ffmpeg
+
+    mkv = tmp_path / "audio.mkv"
+    subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-loglevel", "error", "-y",
+                    "-i", str(clip / "frames.mp4"), "-f", "lavfi", "-i", "sine=d=3", "-c:v", "copy", "-c:a", "aac",
+                    str(mkv)], check=True, timeout=60)
+    with VideoSource(mkv) as src:
+        assert src.info.frame_count > 30 and not src.info.frame_count_exact   # the estimate, not 20
+        assert len(list(src.frames())) == 20
+    with VideoSource(clip / "frames.mp4") as src:
+        assert src.info.frame_count == 20 and src.info.frame_count_exact
+    out = tmp_path / "out"
+    assert main(["video", str(mkv), "--camera", str(clip / "camera.json"), "--out", str(out), "--no-video"]) == 0
+    assert len((out / "predictions.jsonl").read_text().splitlines()) == 20
+    capsys.readouterr()
+
+
 def test_fallback_time_when_container_gives_none(clip):
     with VideoSource(clip / "frames.mp4") as src:
         assert src._file_time(0, 0.0, -math.inf) == 0.0
@@ -273,6 +292,23 @@ def test_horizon_helper_recovers_rendered_horizon(clip, tmp_path, pitch_deg, cap
     assert abs(math.radians(printed["pitch_deg"]) - cam.pitch_rad) < math.atan(3.0 / cam.fy)
 
 
+def test_horizon_helper_on_a_video_at_another_size_speaks_in_the_camera_files_pixels(clip, tmp_path, capsys):
+    big = tmp_path / "big.mp4"
+    writer = cv2.VideoWriter(str(big), cv2.VideoWriter_fourcc(*"mp4v"), FPS, (2 * W, 2 * H))
+    for img in _decode(clip / "frames.mp4"):
+        writer.write(cv2.resize(img, (2 * W, 2 * H), interpolation=cv2.INTER_LINEAR))
+    writer.release()
+    file_row = json.loads((clip / "camera.json").read_text())["horizon_row"]
+    capsys.readouterr()
+    assert main(["calibrate-horizon", str(big), "--camera", str(clip / "camera.json")]) == 0
+    out = capsys.readouterr().out
+    row = yaml.safe_load(out)["horizon_row"]
+    assert abs(row - file_row) < 3.0                       # the camera file's rows, not the video's (2x)
+    last = out.strip().splitlines()[-1]
+    assert f"puts the horizon at {file_row:.2f} px" in last
+    assert float(last.rsplit("difference ", 1)[1].split()[0]) == pytest.approx(row - file_row, abs=0.011)
+
+
 # ---------------------------------------------------------------------------- bad input
 def _camera_text(**fields) -> str:
     base = {"width": W, "height": H, "hfov_deg": 70.0, "height_m": 1.3, "pitch_deg": 2.0}
@@ -296,7 +332,32 @@ BAD = {
     "truth-only detector": (None, None, ["--detector", "oracle"], "needs the simulation's ground truth"),
     "yolo without its model": (None, None, ["--detector", "yolo"], "detector 'yolo' needs a model file"),
     "truncated video": ("{tmp}/truncated.mp4", None, [], "truncated or corrupt"),
+    # camera.json as `monorarp run` writes it, one field edited
+    "NaN lateral offset": (None, "{tmp}/nan_lateral.json", [], "lateral_offset_m must be finite, got nan"),
+    "infinite forward offset": (None, "{tmp}/inf_forward.json", [], "forward_offset_m must be finite, got inf"),
+    "infinite height": (None, "{tmp}/inf_height.json", [], "height_m must be finite, got inf"),
+    "width true": (None, "{tmp}/width_true.json", [], "width must be a whole number of pixels, 1..1000000, got True"),
+    "fractional width": (None, "{tmp}/width_frac.json", [], "width must be a whole number of pixels, 1..1000000, "
+                                                           "got 320.5"),
+    "width a word": (None, "{tmp}/width_abc.json", [], "width must be a whole number of pixels, 1..1000000, "
+                                                       "got 'abc'"),
+    "fx a string": (None, "{tmp}/fx_str.json", [], "fx must be a number, got '457'"),
+    "K a string": (None, "{tmp}/k_str.json", [], "K must be a 3x3 matrix (3 rows of 3 numbers), got 'abc'"),
+    "K entry a string": (None, "{tmp}/k_entry.json", [], "K[1][2] must be a number, got 'abc'"),
+    "cx beside K": (None, "{tmp}/cx_edited.json", [], "cx 10000.0 disagrees with K[0][2] 159.5; give one of them"),
+    "cx outside": (None, "{tmp}/cx_outside.yaml", [], "principal point cx=10000.0 px lies outside the image "
+                                                      "(-0.5..319.5)"),
+    "camera sees no road": (None, "{tmp}/pitched_up.yaml", [], "ego-speed stage 'ground_track' (lane-marking "
+                                                               "ego-speed estimator) cannot run:"),
 }
+
+
+def _camera_json(clip: Path, **fields) -> str:
+    """The clip's camera.json (K and fx/fy/cx/cy, as `monorarp run` writes it) with ``fields`` replaced;
+    NaN / Infinity written as Python's json writes them."""
+    data = json.loads((clip / "camera.json").read_text())
+    data.update(fields)
+    return json.dumps(data)
 
 
 @pytest.fixture(scope="module")
@@ -308,6 +369,15 @@ def bad_files(clip, tmp_path_factory):
     (tmp / "negf.yaml").write_text(_camera_text(hfov_deg=None, fx=-250.0))
     (tmp / "horizon.yaml").write_text(_camera_text(pitch_deg=None, horizon_row=-12.0))
     (tmp / "pitch.yaml").write_text(_camera_text(pitch_deg=40.0))
+    k = json.loads((clip / "camera.json").read_text())["K"]
+    for name, fields in {"nan_lateral": dict(lateral_offset_m=math.nan), "inf_forward": dict(forward_offset_m=math.inf),
+                         "inf_height": dict(height_m=math.inf), "width_true": dict(width=True),
+                         "width_frac": dict(width=W + 0.5), "width_abc": dict(width="abc"), "fx_str": dict(fx="457"),
+                         "k_str": dict(K="abc"), "k_entry": dict(K=[k[0], [0.0, k[1][1], "abc"], k[2]]),
+                         "cx_edited": dict(cx=10000.0)}.items():
+        (tmp / f"{name}.json").write_text(_camera_json(clip, **fields))
+    (tmp / "cx_outside.yaml").write_text(_camera_text(hfov_deg=None, fx=250.0, cx=10000))
+    (tmp / "pitched_up.yaml").write_text(_camera_text(pitch_deg=-20.0))   # horizon 6 rows above the bottom
     data = (clip / "frames.mp4").read_bytes()
     (tmp / "truncated.mp4").write_bytes(data[: len(data) * 6 // 10])   # moov first (+faststart): opens
     return tmp
@@ -325,6 +395,64 @@ def test_bad_input_one_line_exit_2_nothing_written(clip, bad_files, case, capsys
     assert len(err) == 1 and message in err[0] and err[0].startswith("monorarp video: error:")
     assert not out.exists() and not (bad_files / "out").exists()
     assert not [p for p in bad_files.iterdir() if p.name.startswith(".")]   # no temp dirs left
+
+
+def test_camera_that_sees_no_road_names_file_stage_and_way_out(clip, bad_files, tmp_path, capsys):
+    camera = bad_files / "pitched_up.yaml"
+    out = tmp_path / "out"
+    assert main(["video", str(clip / "frames.mp4"), "--camera", str(camera), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"monorarp video: error: {camera}: ego-speed stage 'ground_track' (lane-marking ego-speed "
+                   "estimator) cannot run: no ground rows between 5.0 m and 25.0 m for this camera; "
+                   "--ego-speed none runs without it"]
+    assert not out.exists()
+    assert main(["video", str(clip / "frames.mp4"), "--camera", str(camera), "--out", str(out), "--no-video",
+                 "--ego-speed", "none", "--max-frames", "2"]) == 0
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize("fields, message", [
+    (dict(lateral_offset_m=math.nan), "lateral_offset_m must be finite"),
+    (dict(forward_offset_m=-math.inf), "forward_offset_m must be finite"),
+    (dict(height_m=math.inf), "height_m must be finite"),
+    (dict(pitch_deg=math.nan), "pitch_deg must be finite"),
+    (dict(roll_deg=math.inf), "roll_deg must be finite"),
+    (dict(hfov_deg=math.nan), "hfov_deg must be finite"),
+    (dict(height_m=10 ** 400), "height_m must be finite"),
+    (dict(width=True), "width must be a whole number of pixels"),
+    (dict(height=False), "height must be a whole number of pixels"),
+    (dict(width=640.5), "width must be a whole number of pixels"),
+    (dict(width="640"), "width must be a whole number of pixels"),
+    (dict(width=10 ** 400), "width must be a whole number of pixels"),
+    (dict(width=0), "width must be a whole number of pixels"),
+    (dict(height_m="1.3"), "height_m must be a number, got '1.3'"),
+    (dict(height_m=None), "height_m must be a number, got None"),
+    (dict(pitch_deg=True), "pitch_deg must be a number, got True"),
+    (dict(hfov_deg=None, fx=250.0, cx=-1.0), "principal point cx=-1.0 px lies outside the image"),
+    (dict(hfov_deg=None, fx=250.0, cy=H), "principal point cy=180.0 px lies outside the image"),
+    (dict(hfov_deg=None, fx=math.inf), "fx must be finite"),
+    (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, 89.5]]), "K must be a 3x3 matrix"),
+    (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, math.nan], [0, 0, 1]]), "K[1][2] must be finite"),
+    (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, 89.5], [0, 0, 1]], fy=251.0), "fy 251.0 disagrees with K"),
+])
+def test_camera_file_fields_are_checked_and_named(fields, message):
+    """Every numeric field: a finite number (no bool, no string), whole pixels, principal point in the image."""
+    d = {"width": W, "height": H, "hfov_deg": 70.0, "height_m": 1.3, **fields}
+    with pytest.raises(CameraError) as e:
+        CameraModel.from_dict(d, source="cam.yaml")
+    assert str(e.value).startswith("cam.yaml: ") and message in str(e.value)
+
+
+def test_camera_files_written_by_run_still_load(clip):
+    cam = CameraModel.load(clip / "camera.json")
+    d = {**json.loads((clip / "camera.json").read_text()), "width": float(W)}   # 320.0: a whole number
+    assert CameraModel.from_dict(d) == cam
+    assert CameraModel.from_dict({**cam.to_dict(), "cx": cam.cx + 1e-9}) == cam   # K and cx agree
+    fx_only = {"width": W, "height": H, "fx": 250.0, "hfov_deg": None, "pitch_deg": None, "height_m": 1.3}
+    assert CameraModel.from_dict(fx_only) == CameraModel(W, H, 250.0, 250.0, (W - 1) / 2, (H - 1) / 2, 1.3)
+    for cx in (-0.5, W - 0.5):   # principal point on the image's edge: stays there when scaled
+        edge = CameraModel(W, H, 250.0, 250.0, cx, (H - 1) / 2, 1.3)
+        assert edge.scaled(W // 2, H // 2).cx == (cx + 0.5) / 2 - 0.5 and edge.scaled(W * 2, H * 2).cx == 2 * cx + 0.5
 
 
 def test_failure_midway_keeps_the_previous_run(clip, run, bad_files, tmp_path, capsys):

@@ -9,6 +9,7 @@ run started — or a summary that could not be written (e.g. a full disk).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
@@ -44,4 +45,9 @@ def run(args: argparse.Namespace) -> int:
     for r in res.failed:
         print(f"  FAILED {r['id']}: {r['error']}")
     print(f"wrote {args.out}/summary.json, summary.csv, {REPORT_HTML}")
+    measured = {k for r in res.rows for k in r["metrics"]}
+    absent = [m for m in res.expansion.spec.metrics if m not in measured]
+    if absent and ok:
+        print(f"monorarp sweep: warning: spec metrics in no run's metrics.json (misspelled? names: "
+              f"docs/metrics.md): {', '.join(absent)}", file=sys.stderr)
     return 1 if res.failed else 0

@@ -113,6 +113,16 @@ def prepare_out_dir(out: Path, resume: bool) -> Path:
     return runs
 
 
+def refuse_runs_not_in_spec(runs_dir: Path, ids: set[str]) -> None:
+    """``--resume`` continues one sweep: run directories the spec does not have (another spec's, or runs
+    dropped from this one) would sit beside a summary that omits them, so they are refused, not deleted."""
+    other = sorted(p.name for p in runs_dir.iterdir() if not p.name.startswith(".") and p.name not in ids)
+    if other:
+        raise OutputError(f"{runs_dir}: {len(other)} run(s) not in this spec ({', '.join(other[:3])}"
+                          f"{' ...' if len(other) > 3 else ''}); remove them to resume with this spec, "
+                          f"or choose another --out")
+
+
 def with_outcomes(rows: list[dict], executed: list[RunOutcome]) -> list[dict]:
     """Rows whose run left no record on disk (e.g. a full disk refused it) take this sweep's outcome."""
     failed = {o.id: o.error for o in executed if o.status != "ok"}
@@ -160,21 +170,25 @@ def _run(ex: Executor, expansion: Expansion, spec_path: str | Path, out: Path, r
          t0: float) -> SweepResult:
     runs_dir = prepare_out_dir(out, resume)
     tasks = expansion.tasks
+    if resume:
+        refuse_runs_not_in_spec(runs_dir, {t.id for t in tasks})
     skipped = [t.id for t in tasks if resume and finished(t, runs_dir)]
     todo = [t for t in tasks if t.id not in set(skipped)]
     result = SweepResult(out=out, expansion=expansion, rows=[], skipped=skipped)
     bar = _progress(len(todo), progress)
+    outcomes = ex.run(todo, runs_dir)
     try:
         n_failed = 0
-        for outcome in ex.run(todo, runs_dir):
+        for outcome in outcomes:
             result.executed.append(outcome)
             n_failed += outcome.status != "ok"
             bar.set_postfix_str(f"failed {n_failed}" if n_failed else "", refresh=False)
             bar.update(1)
-    finally:
+    finally:                                  # also on Ctrl-C / SIGTERM: end the workers, then
+        getattr(outcomes, "close", lambda: None)()
         bar.close()
+        clean_leftovers(runs_dir)             # what they left unfinished is garbage (finished runs stay)
     spec = expansion.spec
-    clean_leftovers(runs_dir)                 # every worker has ended: what a dead one left is garbage
     result.rows = with_outcomes(collect_rows(tasks, runs_dir), result.executed)
     try:
         write_summary(out, result.rows, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),

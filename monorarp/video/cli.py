@@ -62,13 +62,17 @@ def register_video(sub: argparse._SubParsersAction) -> None:
 
 def video_command(args: argparse.Namespace) -> int:
     from monorarp.config_options import pipeline_config
+    from monorarp.ego_speed.geometry import EgoSpeedStageError
     from monorarp.video.run import VideoRunOptions, run_video
 
     # names are checked by run_video, after the camera and the input (one error at a time, in that order)
     options = VideoRunOptions(pipeline=pipeline_config(args, check=False), speed_mps=args.speed, threaded=args.threaded,
                               max_frames=args.max_frames, write_video=not args.no_video, display=args.display)
     out = args.out if args.out is not None else _default_out(args.input)
-    summary = run_video(args.input, args.camera, out, options)
+    try:
+        summary = run_video(args.input, args.camera, out, options)
+    except EgoSpeedStageError as e:   # e.g. a camera that sees too little road for it
+        raise EgoSpeedStageError(f"{args.camera}: {e}; --ego-speed none runs without it") from None
     span = "" if summary.t_first is None else f", t {summary.t_first:.3f}..{summary.t_last:.3f} s"
     pipe = "" if summary.pipeline_ms_mean is None else f"; pipeline {summary.pipeline_ms_mean:.1f} ms/frame"
     print(f"processed {summary.frames} frames{span}{pipe}; {summary.fps:.1f} frames/s overall "
@@ -104,15 +108,12 @@ def calibrate_command(args: argparse.Namespace) -> int:
         est = estimate_horizon((f.image for f in source.frames(args.frames)), cam.fy, cam.cy)
     print(f"# {source.name}: vanishing point found in {est.frames_used} of {est.frames_seen} frames, "
           f"spread {est.spread_px:.2f} px (scaled MAD), column {est.u:.1f} px")
+    row_file = (est.row + 0.5) * camera.height / cam.height - 0.5   # rows in the camera file's image
     if scaled:
-        row_file = (est.row + 0.5) * camera.height / cam.height - 0.5
         print(f"# horizon row {est.row:.2f} px at the video's {cam.width}x{cam.height}; "
               f"in the camera file's {camera.width}x{camera.height}:")
-        print(f"horizon_row: {row_file:.2f}")
-    else:
-        print(f"horizon_row: {est.row:.2f}")
+    print(f"horizon_row: {row_file:.2f}")
     print(f"pitch_deg: {est.pitch_deg:.3f}")
-    where = "the camera file (scaled to the video) puts" if scaled else "the camera file puts"
-    print(f"# {where} the horizon at {cam.horizon_row:.2f} px (pitch_deg "
-          f"{math.degrees(cam.pitch_rad):.3f}); difference {est.row - cam.horizon_row:+.2f} px")
+    print(f"# the camera file puts the horizon at {camera.horizon_row:.2f} px (pitch_deg "
+          f"{math.degrees(camera.pitch_rad):.3f}); difference {row_file - camera.horizon_row:+.2f} px")
     return 0

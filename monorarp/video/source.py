@@ -16,8 +16,11 @@ Timestamps (s, :attr:`monorarp.types.Frame.t`):
 Errors are :class:`VideoSourceError` (one line, a :class:`~monorarp.errors.UserError`):
 a missing file, a file no backend can decode (random bytes, an empty file),
 a webcam index that cannot be opened, and -- while iterating -- a file whose
-decoding stops before the frame count its container announces (truncated or
-corrupt data).
+decoding stops before the frame count its container stores (truncated or
+corrupt data). Only MP4/MOV and AVI store a count; for other containers
+(Matroska, WebM, MPEG-TS) OpenCV estimates it as duration x frame rate, which
+an audio track longer than the video or a variable frame rate exceeds, so
+their files are decoded to the end without that check.
 """
 
 from __future__ import annotations
@@ -42,6 +45,8 @@ from monorarp.types import Frame
 # the file is reported as truncated (counts from some containers are estimates).
 COUNT_SLACK_FRAMES = 2
 COUNT_SLACK_FRACTION = 0.01
+# Box types that can open an ISO base media file (MP4, MOV, 3GP) at byte 4.
+_ISO_BMFF_BOXES = (b"ftyp", b"moov", b"mdat", b"free", b"skip", b"wide", b"pnot")
 
 
 class VideoSourceError(UserError, OSError):
@@ -58,6 +63,7 @@ class VideoInfo:
     fps: float | None
     frame_count: int | None
     is_webcam: bool
+    frame_count_exact: bool = False   # stored by the container (MP4/MOV, AVI), not estimated
 
 
 def parse_input(spec: str | int | Path) -> str | int:
@@ -86,6 +92,16 @@ def _quiet_opencv() -> Iterator[None]:
     finally:
         if log is not None and previous is not None:
             log.setLogLevel(previous)
+
+
+def stores_frame_count(path: str | Path) -> bool:
+    """Whether the file's container stores its frame count (MP4/MOV family, AVI), judged by its first bytes."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(12)
+    except OSError:
+        return False
+    return head[4:8] in _ISO_BMFF_BOXES or (head[:4] == b"RIFF" and head[8:12] == b"AVI ")
 
 
 def _positive(x: float) -> float | None:
@@ -136,6 +152,7 @@ class VideoSource:
             fps=_positive(self._cap.get(cv2.CAP_PROP_FPS)),
             frame_count=None if self.is_webcam or not _positive(count) else int(round(count)),
             is_webcam=self.is_webcam,
+            frame_count_exact=not self.is_webcam and stores_frame_count(target),
         )
         self.frames_read = 0
 
@@ -144,8 +161,8 @@ class VideoSource:
         """Frames in decode order, index from 0; stops after ``max_frames`` if given.
 
         Raises :class:`VideoSourceError` if a file stops decoding before the
-        frame count announced by its container (only when not cut short by
-        ``max_frames``). A source yields its frames once.
+        frame count its container stores (MP4/MOV, AVI; only when not cut short
+        by ``max_frames``). A source yields its frames once.
         """
         if self._first is None:
             raise ValueError(f"{self.name}: frames() can be iterated once, on an open source")
@@ -182,8 +199,9 @@ class VideoSource:
         return t if t > prev_t else prev_t + 1.0 / fps
 
     def _check_complete(self, decoded: int) -> None:
+        """Refuse a file that decoded fewer frames than its container stores (module docstring)."""
         expected = self.info.frame_count
-        if self.is_webcam or expected is None:
+        if self.is_webcam or expected is None or not self.info.frame_count_exact:
             return
         if expected - decoded > max(COUNT_SLACK_FRAMES, COUNT_SLACK_FRACTION * expected):
             raise VideoSourceError(f"{self.name}: decoding failed after frame {decoded - 1} "

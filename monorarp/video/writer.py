@@ -110,7 +110,14 @@ class VideoWriter:
         """Finish the file (waits for the encoder)."""
         if self._gen is not None:
             gen, self._gen = self._gen, None
-            gen.close()
+            quiet = logging.getLogger("imageio_ffmpeg")
+            level = quiet.level
+            if self.count == 0:   # closed before a frame (a run ended early): imageio-ffmpeg's warning that
+                quiet.setLevel(logging.ERROR)   # the file is invalid is noise beside the run's own one line
+            try:
+                gen.close()
+            finally:
+                quiet.setLevel(level)
         if self._cv is not None:
             cv, self._cv = self._cv, None
             cv.release()
