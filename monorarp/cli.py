@@ -20,6 +20,7 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator
+from typing import NoReturn
 from contextlib import contextmanager
 from importlib.metadata import PackageNotFoundError, distribution, entry_points, requires
 
@@ -81,8 +82,16 @@ def _add_unavailable(sub: argparse._SubParsersAction, command: str, missing: str
     p.set_defaults(func=lambda args: _needs_harness(command, missing))
 
 
+class OneLineErrorParser(argparse.ArgumentParser):
+    """argparse with its errors on one line (``monorarp run: error: ... (see monorarp run --help)``, exit 2)
+    instead of the usage block and then the error; sub-command parsers are of this class too."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="monorarp", description="Monocular collision-risk pipeline and its simulation harness.")
+    parser = OneLineErrorParser(prog="monorarp", description="Monocular collision-risk pipeline and its simulation harness.")
     parser.add_argument("--version", action="version", version=f"monorarp {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     seen: set[str] = set()
@@ -129,7 +138,11 @@ def _sigterm_unwinds() -> Iterator[None]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:   # named after the sub-command they were given to (argparse names the top level)
+        sub = f"monorarp {args.command}" if getattr(args, "command", None) else "monorarp"
+        print(f"{sub}: error: unrecognized arguments: {' '.join(unknown)} (see {sub} --help)", file=sys.stderr)
+        return 2
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

@@ -18,7 +18,9 @@ import json
 import math
 import os
 import shutil
+import signal
 import tempfile
+import threading
 import uuid
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
@@ -145,6 +147,34 @@ class JsonlWriter:
             self.close()
         else:
             self.abort()
+
+
+@contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM until the block ends (main thread), then act on the first that came.
+
+    For the last writes of files that belong together (a sweep's summary and its report): a
+    Ctrl-C or ``kill`` in between would leave one without the other. (Python-level handlers,
+    not a signal mask: a process-directed signal goes to any thread that does not block it.)
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, frame: held.append(signum))
+                for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            if handler is not None:          # None: a handler not set from Python, left as it is
+                signal.signal(s, handler)
+        if held:
+            handler = previous[held[0]]
+            if callable(handler):
+                handler(held[0], None)       # e.g. KeyboardInterrupt, or the CLI's Terminated
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(held[0])
 
 
 # -------------------------------------------------------------- output dirs

@@ -226,3 +226,8 @@ def test_axis_table_means_per_value_and_variant():
     assert t["b"] == [(None, 0.5), (100.0, None)]
     html = axis_section(rows, ["conditions.fog_visibility_m", "x"], ["detection.recall"])
     assert html.count("<img") == 2
+    html = axis_section(rows, ["x"], ["detection.recall", "ttc.warning.precision"])   # null in every run: a note
+    assert html.count("<img") == 1
+    failed = [{**r, "status": "failed", "metrics": {}} for r in rows]
+    html = axis_section(failed, ["x"], ["detection.recall"])
+    assert "No finished run" in html and "<img" not in html

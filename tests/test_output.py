@@ -192,3 +192,18 @@ def test_sigterm_leaves_no_temporary_output(tmp_path):
     assert proc.returncode == 128 + signal.SIGTERM, err
     assert err.strip().splitlines() == ["monorarp run: terminated"]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupts_deferred_holds_ctrl_c_until_the_block_ends():
+    import os
+    import signal
+
+    from monorarp.io import interrupts_deferred
+
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with interrupts_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+            done.append("first")
+            done.append("second")       # not cut between the two
+    assert done == ["first", "second"]

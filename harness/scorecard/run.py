@@ -28,7 +28,7 @@ from harness.scorecard.protocols import ProtocolError, Trial, expand_protocol, l
 from harness.scoring.warnings import braking_alarm
 from harness.sweep.executors import Executor, make_executor
 from harness.sweep.expand import RunTask, _inject_seeds, sanitize
-from harness.sweep.orchestrate import clean_leftovers, finished, prepare_out_dir
+from harness.sweep.orchestrate import execute, finished, prepare_out_dir
 from harness.sweep.spec import Variant, run_mapping
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
 from monorarp.readers import read_json_or_none
@@ -134,8 +134,7 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
 def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., Executor] = make_executor) -> dict:
     """Run every trial not already finished, then score and write ``scorecard.json`` and ``report.html``."""
     from harness.scorecard.report import render_scorecard
-    from harness.sweep.orchestrate import _progress
-    from monorarp.io import write_atomic, write_json_atomic
+    from monorarp.io import interrupts_deferred, write_atomic, write_json_atomic
 
     out = Path(out)
     trials, tasks = build_tasks(opts)
@@ -144,24 +143,19 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
     getattr(ex, "start", lambda: None)()
     try:
         runs_dir = prepare_out_dir(out, opts.resume)
-        todo = [t for t in tasks if not (opts.resume and finished(t, runs_dir))]
-        bar = _progress(len(todo), opts.progress)
-        try:
-            for _ in ex.run(todo, runs_dir):
-                bar.update(1)
-        finally:
-            bar.close()
-        clean_leftovers(runs_dir)        # what a dead worker left half-written
+        execute(ex, [t for t in tasks if not (opts.resume and finished(t, runs_dir))], runs_dir, opts.progress)
     finally:
         getattr(ex, "close", lambda: None)()
     from harness.sweep.summary import collect_rows, write_summary
 
     rows = collect_rows(tasks, runs_dir)     # summary.json: what `monorarp check` regression-checks
-    write_summary(out, rows, name="scorecard", spec_path=", ".join(map(str, protocol_paths(opts))), grid_keys=[],
-                  headline=["warning.first_warning_ttc_s", "warning.episodes", "warning.false_alarms"])
     card, risk_runs = scorecard(trials, tasks, runs_dir, opts)
-    write_json_atomic(out / SCORECARD_JSON, card, indent=2)
-    write_atomic(out / REPORT_HTML, render_scorecard(card, score.roc_curves(risk_runs, 2.0)))
+    report = render_scorecard(card, score.roc_curves(risk_runs, 2.0))
+    with interrupts_deferred():              # summary, scorecard and report: all or none
+        write_summary(out, rows, name="scorecard", spec_path=", ".join(map(str, protocol_paths(opts))), grid_keys=[],
+                      headline=["warning.first_warning_ttc_s", "warning.episodes", "warning.false_alarms"])
+        write_json_atomic(out / SCORECARD_JSON, card, indent=2)
+        write_atomic(out / REPORT_HTML, report)
     return card
 
 

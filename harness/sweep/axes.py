@@ -58,8 +58,11 @@ def axis_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Se
     import matplotlib.pyplot as plt
 
     metrics = list(headline)[:MAX_METRICS]
-    parts = ["<h2>Metrics against each grid axis</h2><p class='note'>Mean over the finished runs with that "
-             "axis value (and every value of the other axes), per variant.</p>"]
+    heading = "<h2>Metrics against each grid axis</h2>"
+    if not metrics or not any(r["status"] == "ok" for r in rows):
+        return heading + "<p class='note'>No finished run: nothing to plot.</p>"
+    parts = [heading + "<p class='note'>Mean over the finished runs with that axis value (and every value of "
+             "the other axes), per variant.</p>"]
     for key in grid_keys:
         ncol = min(3, len(metrics))
         nrow = math.ceil(len(metrics) / ncol)
@@ -74,8 +77,16 @@ def axis_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Se
                 ax.plot(xs, ys, marker="o", label=variant)
             if numeric and _log_scale([float(v) for v, _ in any_values]):
                 ax.set_xscale("log")
+            if numeric and len(any_values) <= 12:
+                ax.set_xticks([float(v) for v, _ in any_values], [format_value(v) for v, _ in any_values])
+                ax.minorticks_off()
             if not numeric:
                 ax.set_xticks(range(len(any_values)), [format_value(v) for v, _ in any_values], rotation=30)
+            if not any(y is not None for pts in table.values() for _, y in pts):
+                ax.text(0.5, 0.5, "no value in any finished run", ha="center", va="center",
+                        transform=ax.transAxes, fontsize=8, color="0.4")
+                ax.set_xticks([])
+                ax.set_yticks([])
             ax.set_title(metric, fontsize=9)
             ax.set_xlabel(key, fontsize=8)
             ax.grid(alpha=0.3)

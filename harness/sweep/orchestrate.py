@@ -20,7 +20,7 @@ import re
 import shutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -30,7 +30,7 @@ from harness.sweep.expand import Expansion, RunTask, load_and_expand
 from harness.sweep.report import render_report
 from harness.sweep.summary import collect_rows, write_summary
 from harness.sweep.worker import METRICS_JSON, RUN_JSON, RunOutcome, describe_error
-from monorarp.io import OutputError, write_atomic
+from monorarp.io import OutputError, interrupts_deferred, write_atomic
 from monorarp.readers import read_json_or_none
 
 if TYPE_CHECKING:
@@ -123,6 +123,28 @@ def refuse_runs_not_in_spec(runs_dir: Path, ids: set[str]) -> None:
                           f"or choose another --out")
 
 
+def execute(ex: Executor, todo: Sequence[RunTask], runs_dir: Path, progress: bool) -> list[RunOutcome]:
+    """Run ``todo`` on ``ex`` under a progress bar; return the outcomes in the order they came.
+
+    However it ends (Ctrl-C and SIGTERM included) the workers are ended first, then what they left
+    unfinished is removed (:func:`clean_leftovers`); finished runs stay.
+    """
+    bar = _progress(len(todo), progress)
+    outcomes = ex.run(todo, runs_dir)
+    executed: list[RunOutcome] = []
+    try:
+        for outcome in outcomes:
+            executed.append(outcome)
+            n_failed = sum(o.status != "ok" for o in executed)
+            bar.set_postfix_str(f"failed {n_failed}" if n_failed else "", refresh=False)
+            bar.update(1)
+    finally:
+        getattr(outcomes, "close", lambda: None)()
+        bar.close()
+        clean_leftovers(runs_dir)
+    return executed
+
+
 def with_outcomes(rows: list[dict], executed: list[RunOutcome]) -> list[dict]:
     """Rows whose run left no record on disk (e.g. a full disk refused it) take this sweep's outcome."""
     failed = {o.id: o.error for o in executed if o.status != "ok"}
@@ -175,27 +197,16 @@ def _run(ex: Executor, expansion: Expansion, spec_path: str | Path, out: Path, r
     skipped = [t.id for t in tasks if resume and finished(t, runs_dir)]
     todo = [t for t in tasks if t.id not in set(skipped)]
     result = SweepResult(out=out, expansion=expansion, rows=[], skipped=skipped)
-    bar = _progress(len(todo), progress)
-    outcomes = ex.run(todo, runs_dir)
-    try:
-        n_failed = 0
-        for outcome in outcomes:
-            result.executed.append(outcome)
-            n_failed += outcome.status != "ok"
-            bar.set_postfix_str(f"failed {n_failed}" if n_failed else "", refresh=False)
-            bar.update(1)
-    finally:                                  # also on Ctrl-C / SIGTERM: end the workers, then
-        getattr(outcomes, "close", lambda: None)()
-        bar.close()
-        clean_leftovers(runs_dir)             # what they left unfinished is garbage (finished runs stay)
+    result.executed = execute(ex, todo, runs_dir, progress)
     spec = expansion.spec
     result.rows = with_outcomes(collect_rows(tasks, runs_dir), result.executed)
+    report = render_report(result.rows, runs_dir, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),
+                           headline=spec.metrics, threshold_s=spec.warning_threshold_s)
     try:
-        write_summary(out, result.rows, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),
-                      headline=spec.metrics)
-        write_atomic(out / REPORT_HTML, render_report(result.rows, runs_dir, name=spec.name,
-                                                           spec_path=str(spec_path), grid_keys=list(spec.grid),
-                                                           headline=spec.metrics, threshold_s=spec.warning_threshold_s))
+        with interrupts_deferred():          # the summary and its report: both or neither
+            write_summary(out, result.rows, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),
+                          headline=spec.metrics)
+            write_atomic(out / REPORT_HTML, report)
     except OSError as e:
         n_ok = sum(r["status"] == "ok" for r in result.rows)
         raise OutputError(f"{out}: cannot write the summary ({describe_error(e)}); the {n_ok} finished runs under "
