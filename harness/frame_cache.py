@@ -406,16 +406,21 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+def check_max_gb(max_gb: float | None) -> None:
+    """``--cache-max-gb`` checked: a positive finite number of GB, or None (unlimited); :class:`CacheError`."""
+    if max_gb is not None and not (max_gb > 0 and max_gb < float("inf")):
+        raise CacheError(f"--cache-max-gb: must be a positive number of GB, got {max_gb}")
+
+
 def open_cache(where: str | Path | None, max_gb: float | None = DEFAULT_MAX_GB) -> FrameCache | None:
     """The cache for ``--cache`` (``None``: :func:`default_dir`; ``"off"``: no cache) and ``--cache-max-gb``
     (GB = 1e9 bytes; None: unlimited). The directory is created and checked to be writable now;
     raises :class:`CacheError` (one line) otherwise."""
+    check_max_gb(max_gb)                         # a bad limit is refused with --cache off too
     if isinstance(where, str) and where.strip().lower() == "off":
         return None
     if isinstance(where, str) and not where.strip():
         raise CacheError("--cache: give a directory or 'off'")
-    if max_gb is not None and not (max_gb > 0 and max_gb < float("inf")):
-        raise CacheError(f"--cache-max-gb: must be a positive number of GB, got {max_gb}")
     root = default_dir() if where is None else Path(where).expanduser()
     try:
         for sub in ("entries", "tmp", "locks"):

@@ -44,6 +44,11 @@ _FINITE = ("fx", "fy", "cx", "cy", "height_m", "pitch_rad", "lateral_offset_m", 
 # the numeric fields of a camera file; every one given is checked, also when another field takes precedence
 _FILE_NUMBERS = ("fx", "fy", "cx", "cy", "hfov_deg", "height_m", "pitch_rad", "pitch_deg", "horizon_row",
                  "lateral_offset_m", "forward_offset_m", "roll_rad", "roll_deg")
+#: every key a camera file may hold: the documented ones (docs/formats.md) and all that :meth:`CameraModel.to_dict`
+#: writes (``camera.json``: K beside fx/fy/cx/cy, the derived horizon_row, roll_rad when not 0); others are refused
+FILE_KEYS = ("width", "height", "K", *_FILE_NUMBERS)
+#: largest deviation of K's fixed entries (``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``) taken as float noise
+_K_TOL = 1e-9
 
 
 def _show(value: object) -> str:
@@ -81,6 +86,35 @@ def _matrix3(value: object, name: str) -> np.ndarray:
             and all(isinstance(r, (list, tuple)) and len(r) == 3 for r in rows)):
         raise CameraError(f"{name} must be a 3x3 matrix (3 rows of 3 numbers), got {_show(value)}")
     return np.array([[_number(v, f"{name}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(rows)])
+
+
+def _intrinsic_matrix(K: np.ndarray) -> None:
+    """:class:`CameraError` naming the first entry that keeps ``K`` from being ``[[fx, 0, cx], [0, fy, cy],
+    [0, 0, 1]]`` (no skew: the model has none, and dropping it would move every projection)."""
+    scale = max(abs(K[0, 0]), abs(K[1, 1]), 1.0)      # the zeros beside fx/fy are in pixels
+    for (i, j), want, tol in (((0, 1), 0.0, _K_TOL * scale), ((1, 0), 0.0, _K_TOL * scale),
+                              ((2, 0), 0.0, _K_TOL), ((2, 1), 0.0, _K_TOL), ((2, 2), 1.0, _K_TOL)):
+        if not abs(K[i, j] - want) <= tol:
+            what = " (skew is not modelled)" if (i, j) == (0, 1) else ""
+            raise CameraError(f"K[{i}][{j}] must be {want:g}{what}, got {float(K[i, j])!r}: K must be an "
+                              "intrinsic matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]")
+
+
+def _unknown_keys(d: dict) -> str | None:
+    """The problem with keys of ``d`` a camera file may not hold (a typo such as ``pitch_dg`` would
+    otherwise leave its field at the default unnoticed), or None."""
+    import difflib
+
+    unknown = [k for k in d if k not in FILE_KEYS]
+    if not unknown:
+        return None
+    names = ", ".join(_show(k) for k in unknown[:5]) + (f" and {len(unknown) - 5} more" if len(unknown) > 5 else "")
+    hint = ""
+    if len(unknown) == 1 and isinstance(unknown[0], str):
+        close = difflib.get_close_matches(unknown[0], FILE_KEYS, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+    return (f"unknown key{'s' if len(unknown) > 1 else ''} {names}{hint}; a camera file holds only "
+            f"{', '.join(FILE_KEYS)}")
 
 
 @dataclass(frozen=True)
@@ -232,8 +266,14 @@ class CameraModel:
         lateral_offset_m; forward_offset_m; roll_rad or roll_deg (default 0). When both a pitch and ``horizon_row`` are given
         (as in ``camera.json``) they must agree within 1 px, and fx/fy/cx/cy given with K must equal K's.
         Every numeric field must be a finite number (not a bool or a string; width and height whole pixels);
-        an optional field that is null counts as not given.
+        an optional field that is null counts as not given. ``K`` must be ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``.
+        Any other key (:data:`FILE_KEYS`) is refused.
         """
+        if not isinstance(d, dict):
+            raise CameraError(f"{source}: must be a mapping, got {_show(d)}")
+        problem = _unknown_keys(d)
+        if problem:
+            raise CameraError(f"{source}: {problem}")
         d = {k: v for k, v in d.items() if v is not None or k in ("width", "height", "height_m")}   # null: not given
         try:
             cam = cls._from_dict_intrinsics(d, source)
@@ -262,6 +302,8 @@ class CameraModel:
         width, height = _pixels(d["width"], "width"), _pixels(d["height"], "height")
         n = {k: _number(d[k], k) for k in _FILE_NUMBERS if k in d}
         K = _matrix3(d["K"], "K") if "K" in d else None
+        if K is not None:
+            _intrinsic_matrix(K)
         pitch = n["pitch_rad"] if "pitch_rad" in n else math.radians(n.get("pitch_deg", 0.0))
         roll = n["roll_rad"] if "roll_rad" in n else math.radians(n.get("roll_deg", 0.0))
         mount = dict(height_m=n["height_m"], pitch_rad=pitch,

@@ -22,7 +22,7 @@ from typing import Any
 
 from monorarp import registry
 from monorarp.errors import UserError
-from monorarp.pipeline import ComponentConfig, PipelineConfig
+from monorarp.pipeline import ComponentConfig, PipelineConfig, check_weak_detections
 
 STAGES = ("detector", "tracker", "state", "risk", "ego_speed", "horizon")
 CLI_EGO_SPEED = "ground_track"          # the run/video commands' ego-speed stage unless --ego-speed none
@@ -79,7 +79,8 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
                        help="CenterNet: sub-pixel bottom-edge refinement from the image (default: the detector's)")
         p.add_argument("--weak-detections", type=float, default=None, metavar="SCORE",
                        help="CenterNet: also give the tracker the boxes scoring from SCORE up to the detector's "
-                            "threshold, as weak detections (they extend tracks, never start one; default: off)")
+                            "threshold, as weak detections (they extend tracks, never start one; only for a tracker "
+                            "that takes them, the particle one; default: off)")
     if "tracker" in stages:
         p.add_argument("--tracker", default=default("tracker"), metavar="NAME",
                        help=_RegistryHelp("tracker", f"registered tracker ({{names}}; default: {default('tracker')})"))
@@ -143,6 +144,8 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
         update["detector"] = _component("detector", "--detector", name, kw, check)
     if "tracker" in stages:
         update["tracker"] = _component("tracker", "--tracker", args.tracker, check=check)
+        if "detector" in stages and getattr(args, "weak_detections", None) is not None:
+            check_weak_detections(update["detector"], [args.tracker], "--weak-detections")
     if "state" in stages:
         update["state"] = ComponentConfig(name=cfg.state.name, kwargs={**cfg.state.kwargs, "velocity": args.velocity})
     if "risk" in stages:

@@ -70,7 +70,42 @@ class PipelineConfig(BaseModel):
         for kind, comp in self.stages().items():
             if not (kind == "detector" and is_model_path(comp.name)):
                 registry.get_factory(kind, comp.name)
+        check_weak_detections(self.detector, [self.tracker.name])
         return self
+
+
+#: The detector kwarg that turns weak detections on (``--weak-detections``).
+WEAK_KWARG = "weak_score_threshold"
+
+
+def check_weak_detections(detector: ComponentConfig, trackers: Iterable[str],
+                          option: str = f"detector_kwargs.{WEAK_KWARG}") -> None:
+    """Raise :class:`~monorarp.errors.UserError` (one line naming ``option``) when ``detector`` is set to
+    give weak detections but none of ``trackers`` takes them (``uses_weak_detections``): they would be
+    dropped silently. Unknown tracker names are left to :meth:`PipelineConfig.validate_names`."""
+    from monorarp.errors import UserError
+
+    if detector.kwargs.get(WEAK_KWARG) is None:
+        return
+    names = list(trackers)
+
+    def takes(name: str) -> bool:
+        return registry.uses(registry.get_factory("tracker", name), "weak_detections")
+
+    try:
+        if not names or any(takes(n) for n in names):
+            return
+    except registry.UnknownComponentError:
+        return
+    takers = []
+    for n in registry.available("tracker"):
+        try:
+            takers += [n] if takes(n) else []
+        except Exception:  # noqa: BLE001 - a plug-in that does not load is no taker
+            pass
+    raise UserError(f"{option}: weak detections go only to a tracker that takes them ({', '.join(takers) or 'none'}); "
+                    f"{'tracker' if len(names) == 1 else 'trackers'} {', '.join(map(repr, names))} "
+                    f"{'takes' if len(names) == 1 else 'take'} none")
 
 
 @dataclass

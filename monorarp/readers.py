@@ -18,8 +18,8 @@ never a traceback and never unbounded memory or time:
   :data:`MAX_DEPTH` levels and the document, with every alias expanded, to
   :data:`MAX_NODES` values (a "billion laughs" document is refused before it
   is expanded); recursive aliases are refused.
-* :func:`parse_json` -- :func:`json.loads` with over-long integers and nesting
-  deeper than :data:`MAX_DEPTH` reported as errors.
+* :func:`parse_json` -- :func:`json.loads` with over-long integers, nesting
+  deeper than :data:`MAX_DEPTH` and a key given twice in one object (json keeps the last) reported as errors.
 * :func:`read_yaml`, :func:`read_json` -- a file the user names, read and parsed.
 * :func:`read_json_or_none` -- a JSON file this program wrote (a run's ``metrics.json``):
   ``None`` when it is missing, unreadable or not JSON, for callers that treat that as "not there".
@@ -214,10 +214,30 @@ def read_yaml(path: str | Path, what: str, error: type[Exception] = UserError) -
 
 
 # ------------------------------------------------------------------------ JSON
+class _DuplicateKey(Exception):
+    def __init__(self, key: str) -> None:
+        super().__init__(key)
+        self.key = key
+
+
+def _unique_object(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """``object_pairs_hook`` of :func:`parse_json`: a JSON object as a dict, refusing a key given twice
+    (``json.loads`` would keep the last one silently, as PyYAML would; see :class:`_ConfigLoader`)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
+
+
 def parse_json(text: str, source: str | Path, what: str = "file", error: type[Exception] = UserError) -> Any:
-    """``json.loads(text)``; malformed, too deeply nested or over-long numbers raise ``error``."""
+    """``json.loads(text)``; malformed, too deeply nested, over-long numbers or a key given twice in one
+    object raise ``error``."""
     try:
-        data = json.loads(text)
+        data = json.loads(text, object_pairs_hook=_unique_object)
+    except _DuplicateKey as e:
+        raise error(f"{source}: {what} is not valid JSON (key {e.key!r} given twice in one object)") from None
     except RecursionError:
         raise error(f"{source}: {what} is not valid JSON (nested too deeply)") from None
     except ValueError as e:

@@ -14,6 +14,8 @@ from harness.bench.trackers import pooled_tracking
 from harness.oracle import OracleDetector
 from monorarp import registry
 from monorarp.cli import main
+from monorarp.errors import UserError
+from monorarp.pipeline import ComponentConfig, PipelineConfig
 from monorarp.tracking.particle import ParticleTracker
 
 N_FRAMES = 8
@@ -259,3 +261,54 @@ def test_bad_seeds_refused_in_one_line(tmp_path, capsys, seeds):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "--seeds" in err[0] and repr(seeds) in err[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_default_scenarios_are_found_from_any_directory(tmp_path, monkeypatch):
+    """The shipped default scenarios do not depend on the current directory (as the scorecard's suites)."""
+    from harness.bench.defaults import DEFAULT_SCENARIOS, default_scenarios
+
+    monkeypatch.chdir(tmp_path)
+    assert [p.endswith(s) for p, s in zip(default_scenarios(), DEFAULT_SCENARIOS)] == [True, True]
+    assert main(["bench", "trackers", "--trackers", "sort", "--detector", "oracle", "--frames", "2",
+                 "--cache", "off", "--out", "out"]) == 0
+    res = json.loads((tmp_path / "out" / "trackers.json").read_text())
+    assert res["config"]["scenario_names"] == ["highway_cruise", "cut_in"]
+
+
+@pytest.mark.parametrize("extra, needle", [
+    (["--scenarios", "{s},{s}"], "scenario listed twice"),
+    (["--scenarios", "{s}", "{d}/../{n}/tiny.yaml"], "scenario listed twice"),
+    (["--frames", "100000"], "--frames: 100000 exceeds the scenario's 15 frames"),
+    (["--cache", "off", "--cache-max-gb", "nan"], "--cache-max-gb"),
+    (["--detector", "centernet", "--weak-detections", "0.2"], "--weak-detections"),
+])
+def test_bad_bench_requests_refused_in_one_line(tmp_path, capsys, extra, needle):
+    scen = tmp_path / "tiny.yaml"
+    scen.write_text(yaml.safe_dump(SCENARIO))
+    extra = [e.format(s=scen, d=tmp_path, n=tmp_path.name) for e in extra]
+    argv = ["bench", "trackers", "--scenarios", str(scen), "--trackers", "sort,kcf", "--detector", "oracle",
+            "--frames", "2", *extra, "--out", str(tmp_path / "out")]
+    rc = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and needle in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_default_frames_still_capped_at_a_short_scenario(tmp_path):
+    from harness.bench.trackers import BenchConfig, bench_trackers
+
+    scen = tmp_path / "tiny.yaml"
+    scen.write_text(yaml.safe_dump(SCENARIO))            # 15 frames, fewer than the default 90
+    res = bench_trackers(BenchConfig(scenarios=[scen], trackers=["sort"], frames=90,
+                                     pipeline=PipelineConfig(detector=ComponentConfig(name="oracle"))))
+    assert res["config"]["frames_per_scenario"] == {"bench_test": 15}
+
+
+def test_seeds_limited_to_10000():
+    from harness.commands.bench import parse_seeds
+
+    assert len(parse_seeds(["0-9999"])) == 10_000
+    with pytest.raises(UserError, match=r"--seeds: at most 10000 seeds, got '1-20000' \(20000 seeds\)"):
+        parse_seeds(["1-20000"])
+    with pytest.raises(UserError, match="--seeds: at most 10000 seeds in all, got 13002 by '7000-14000'"):
+        parse_seeds(["0-6000", "7000-14000"])

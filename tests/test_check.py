@@ -184,3 +184,9 @@ def test_committed_baseline_matches_the_ci_sweep():
         assert not any(k.startswith("runtime_ms") or k == "fps" for k in metrics)
     assert any(m["ttc.warning.recall"]["value"] is not None for m in base["runs"].values())   # a risky scenario
     assert {r.metric for r in DEFAULT_RULES} >= {"tracking.mota", "tracking.idf1", "distance.rel_err_median"}
+
+
+def test_default_baseline_is_said_to_be_relative_to_the_current_directory(capsys):
+    with pytest.raises(SystemExit):
+        main(["check", "--help"])
+    assert "results/baseline.json, relative to the current directory" in " ".join(capsys.readouterr().out.split())

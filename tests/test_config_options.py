@@ -154,3 +154,24 @@ def test_variant_config_and_run_mapping(tmp_path):
     assert list(mapping) == ["detector", "tracker", "state", "risk", "ego_speed", "warning"]   # no horizon key
     assert PipelineConfig.model_validate(mapping) == cfg
     assert "horizon" in run_mapping(Variant(name="h", horizon="online").pipeline_config(tmp_path))
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "missing.yaml", "--weak-detections", "0.2", "--tracker", "sort"],
+    ["video", "absent.mp4", "--camera", "c.yaml", "--weak-detections", "0.2", "--tracker", "bytetrack"],
+])
+def test_weak_detections_need_a_tracker_that_takes_them(argv, capsys):
+    """Weak boxes go only to a tracker declaring ``uses_weak_detections``: for another one the option is refused."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--weak-detections: weak detections go only to a tracker that takes them" in err
+    assert run_config("--weak-detections", "0.2", "--tracker", "particle").tracker == C("particle")
+
+
+def test_weak_detections_in_a_sweep_variant_need_a_tracker_that_takes_them(tmp_path):
+    from harness.sweep.spec import Variant
+
+    cfg = Variant(name="v", detector_kwargs={"weak_score_threshold": 0.2}, tracker="sort").pipeline_config(tmp_path)
+    with pytest.raises(UserError, match=r"detector_kwargs.weak_score_threshold: .* tracker 'sort' takes none"):
+        cfg.validate_names()
+    PipelineConfig(detector=C("centernet", weak_score_threshold=0.2)).validate_names()   # particle takes them

@@ -278,3 +278,13 @@ def test_repository_paths_exist():
             if not list(ROOT.glob(path)):
                 problems.append(f"{page.name}: no {path}")
     assert checked >= 30 and not problems, "\n".join(sorted(set(problems)))
+
+
+def test_every_registered_horizon_is_documented_with_the_option():
+    """``monorarp run --help`` lists every registered horizon stage; cli.md's ``--horizon`` row names each."""
+    from monorarp.catalogue import BUILTINS
+
+    row = next(line for line in (ROOT / "docs" / "cli.md").read_text(encoding="utf-8").splitlines()
+               if line.startswith("| `--horizon` |"))
+    missing = [name for name in BUILTINS["horizon"] if f"`{name}`" not in row]
+    assert not missing, f"docs/cli.md --horizon row lacks {missing}"

@@ -660,6 +660,38 @@ def test_camera_file_with_a_duplicate_key_names_it(tmp_path):
         CameraModel.load(cam)
 
 
+@pytest.mark.parametrize("text, message", [
+    ('{"a": 1, "b": 2, "a": 3}', r"^f\.json: file is not valid JSON \(key 'a' given twice in one object\)$"),
+    ('[{"x": {"y": 1, "y": 1}}]', "key 'y' given twice in one object"),
+    ('{"a": {"x": 1}, "b": {"x": 2}}', None),                          # the same key in two objects is fine
+])
+def test_json_reader_refuses_a_duplicate_key(text, message):
+    """As YAML: json.loads would keep the last of a key given twice, silently."""
+    from monorarp.readers import parse_json
+
+    if message is None:
+        assert parse_json(text, "f.json") == json.loads(text)
+        return
+    with pytest.raises(UserError, match=message):
+        parse_json(text, "f.json")
+
+
+def test_json_files_with_a_duplicate_key_are_refused(tmp_path, capsys):
+    """Camera files and ``check`` baselines (both read by monorarp.readers.parse_json)."""
+    from monorarp.camera import CameraError, CameraModel
+
+    cam = tmp_path / "camera.json"
+    cam.write_text('{"width": 640, "width": 320, "height": 360, "hfov_deg": 70, "height_m": 1.3}')
+    with pytest.raises(CameraError, match=r"camera\.json: camera file is not valid JSON \(key 'width' given twice"):
+        CameraModel.load(cam)
+    results = _results_dir(tmp_path)
+    baseline = tmp_path / "baseline.json"
+    baseline.write_text(json.dumps(BASELINE)[:-1] + ', "version": 2}')
+    rc, o, e = invoke(["check", str(results), "--baseline", str(baseline)], capsys)
+    assert rc == 2 and o == "" and e.strip().splitlines() == [
+        f"monorarp check: error: {baseline}: baseline is not valid JSON (key 'version' given twice in one object)"]
+
+
 # ------------------------------------------------------------------------------ a real process
 def test_real_process_stderr_is_one_line(base, tmp_path):
     """What the in-process tests cannot see: C-level output on file descriptor 2. A clip whose sample table

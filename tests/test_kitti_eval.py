@@ -421,6 +421,64 @@ def test_bad_options(tmp_path, capsys):
         assert not (tmp_path / "o").exists()
 
 
+def _one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+def test_bad_export_manifest_is_refused_not_ignored(round_trip, tmp_path, capsys):
+    """export.json's fps sets the frame times: one that is there but unreadable must not fall back to 10 Hz."""
+    import shutil
+
+    ds = tmp_path / "trk"
+    shutil.copytree(round_trip["kitti-tracking"], ds)
+    manifest = ds / "export.json"
+    good = json.loads(manifest.read_text())
+    out = tmp_path / "out"
+    for text, needle in (("{", f"{manifest}: export manifest is not valid JSON ("),
+                         ('{"fps": "abc"}', f"{manifest}: field fps must be a positive number (frames per second), "
+                                            "got 'abc'"),
+                         ('{"fps": -5}', "field fps must be a positive number (frames per second), got -5"),
+                         ('{"fps": 0}', "field fps must be a positive number"),
+                         ('{"fps": true}', "field fps must be a positive number"),
+                         ('{"fps": 15, "fps": 10}', "key 'fps' given twice in one object"),
+                         ("[15]", "export.json must hold a JSON object, got list"),
+                         (json.dumps({**good, "camera": {"width": 640}}), "field camera: missing field 'height'")):
+        manifest.write_text(text)
+        for extra in ([], ["--fps", "12"]):      # checked also when --fps takes precedence
+            rc = main(["eval", "kitti", str(ds), "--detector", "labels", "--out", str(out), *extra])
+            err = _one_line_error(capsys)
+            assert rc == 2 and needle in err, (text, err)
+            assert not out.exists()
+    manifest.unlink()                             # absent: KITTI's 10 Hz, as documented
+    assert main(["eval", "kitti", str(ds), "--detector", "labels", "--out", str(out)]) == 0
+    assert json.loads((out / "metrics.json").read_text())["config"]["fps_sequence"] == 10.0
+
+
+def test_options_beyond_the_dataset_name_the_option(round_trip, tmp_path, capsys):
+    ds, out = round_trip["kitti-tracking"], tmp_path / "out"
+    for args, message in (
+            (["--horizon-row", "-5"], "monorarp eval: error: --horizon-row: row -5 px lies outside the 640x360 image "
+                                      "(0..359)"),
+            (["--horizon-row", "1e9"], "monorarp eval: error: --horizon-row: row 1e+09 px lies outside the 640x360 "
+                                       "image (0..359)"),
+            (["--frames", "100"], f"monorarp eval: error: --frames: 100 exceeds the dataset's 8 frames in {ds}")):
+        rc = main(["eval", "kitti", str(ds), "--detector", "labels", "--out", str(out), *args])
+        assert rc == 2 and _one_line_error(capsys) == message
+        assert not out.exists()
+    obj = write_object_dataset(tmp_path / "obj")
+    for tracker in ("kcf", "particle"):           # object datasets run no tracker: --tracker is refused there
+        rc = main(["eval", "kitti", str(obj), "--detector", "labels", "--camera-height", "1.65", "--tracker", tracker,
+                   "--out", str(out)])
+        assert rc == 2 and _one_line_error(capsys) == (
+            f"monorarp eval: error: --tracker: {obj} is a KITTI object dataset, whose images are scored one by one "
+            "without a tracker; --tracker applies to tracking datasets (image_02/, label_02/)")
+        assert not out.exists()
+    assert main(["eval", "kitti", str(obj), "--detector", "labels", "--camera-height", "1.65", "--frames", "2",
+                 "--out", str(out)]) == 0                 # all its frames; no --tracker: none runs
+
+
 def test_open_dataset_accepts_training_parent(tmp_path):
     write_object_dataset(tmp_path / "kitti" / "training")
     ds = open_dataset(tmp_path / "kitti")

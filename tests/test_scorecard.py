@@ -91,6 +91,20 @@ def test_contact_time_closed_forms():
     ({"test": "X", "kind": "rear_end", "target_motion": "stationary", "ego_speed_kmh": [50], "required_ttc_s": 2.0,
       "warmup_s": 4.0}, "warmup_s"),
     ({"test": "X", "kind": "nominal", "scenarios": ["s.yaml"], "seeds": [-1]}, "tests.0.seeds.0"),
+    # a field the kind does not use would be ignored silently
+    ({"test": "X", "kind": "pass_by", "ego_speed_kmh": [90], "target_speed_kmh": 108, "gap_m": [10.0],
+      "required_ttc_s": 2}, "required_ttc_s: a pass_by test is no conflict"),
+    ({"test": "X", "kind": "cut_in", "ego_speed_kmh": [90], "target_speed_kmh": 72, "gap_m": [12.0],
+      "required_ttc_s": 1.0, "lateral_offset": [0.5]}, "lateral_offset: a cut_in test does not use it"),
+    ({"test": "X", "kind": "cut_in", "ego_speed_kmh": [90], "target_speed_kmh": 72, "gap_m": [12.0],
+      "required_ttc_s": 1.0, "target_motion": "braking"}, "target_motion: a cut_in test does not use it"),
+    ({"test": "X", "kind": "rear_end", "target_motion": "stationary", "ego_speed_kmh": [50], "required_ttc_s": 2.0,
+      "gap_m": [20.0]}, "gap_m: a rear_end test with a stationary target does not use it"),
+    ({"test": "X", "kind": "rear_end", "target_motion": "braking", "ego_speed_kmh": [50], "target_speed_kmh": 50,
+      "gap_m": [20.0], "target_decel_mps2": [2.0], "required_ttc_s": 2.0, "start_ttc_s": [4, 5]},
+     "start_ttc_s: a rear_end test with a braking target does not use it"),
+    ({"test": "X", "kind": "nominal", "scenarios": ["s.yaml"], "seeds": [1], "trials": 3},
+     "trials: a nominal test does not use it"),
     ({"test": "X", "kind": "nominal", "scenarios": ["s.yaml"], "seeds": [True]}, "tests.0.seeds.0"),
     ({"test": "X", "kind": "nominal", "scenarios": ["s.yaml"], "seeds": ["7"]}, "tests.0.seeds.0"),
 ])
@@ -254,3 +268,20 @@ def test_the_scorecard_says_how_many_false_alarms_were_for_a_braking_vehicle():
     fa["warmup_s"] = [0.0]
     assert "(360 runs) =" in console_table({"tests": [], "false_alarms": fa, "risk": None, "summary": {},
                                             "failed_runs": []})
+
+
+@pytest.mark.parametrize("argv, needle", [
+    # checked at parse time, before anything else (--frames 0: the request fails fast without the limit)
+    (["--suite", "nhtsa", "--trials", "1001", "--frames", "0"], "--trials: must be 1..1000, got 1001"),
+    (["--protocol", str(FCW)], f"--protocol {FCW}: is a directory"),
+    (["--protocol", str(FCW / "ci.yaml"), "--protocol", str(FCW / ".." / "fcw" / "ci.yaml")], "ci.yaml: given twice"),
+    (["--protocol", str(FCW / "ci.yaml"), "--weak-detections", "0.2", "--tracker", "sort"], "--weak-detections"),
+])
+def test_cli_bad_options_one_line_nothing_written(tmp_path, capsys, argv, needle):
+    from monorarp.cli import main
+
+    out = tmp_path / "out"
+    assert main(["scorecard", *argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and needle in err[0], err
+    assert not out.exists()

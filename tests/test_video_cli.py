@@ -434,6 +434,19 @@ def test_camera_that_sees_no_road_names_file_stage_and_way_out(clip, bad_files, 
     (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, 89.5]]), "K must be a 3x3 matrix"),
     (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, math.nan], [0, 0, 1]]), "K[1][2] must be finite"),
     (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, 89.5], [0, 0, 1]], fy=251.0), "fy 251.0 disagrees with K"),
+    # a typo must not leave its field at the default; an unknown key is refused, even when null
+    (dict(pitch_dg=2.0), "unknown key 'pitch_dg' (did you mean 'pitch_deg'?); a camera file holds only width, "
+                         "height, K, fx, fy, cx, cy, hfov_deg, height_m, pitch_rad, pitch_deg, horizon_row, "
+                         "lateral_offset_m, forward_offset_m, roll_rad, roll_deg"),
+    (dict(foo=None, bar=1), "unknown keys 'foo', 'bar'; a camera file holds only width, height, K,"),
+    # K: an intrinsic matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]; skew or another last row is not dropped
+    (dict(hfov_deg=None, K=[[250.0, 1.0, 159.5], [0, 250.0, 89.5], [0, 0, 1]]),
+     "K[0][1] must be 0 (skew is not modelled), got 1.0: K must be an intrinsic matrix [[fx, 0, cx], [0, fy, cy], "
+     "[0, 0, 1]]"),
+    (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [3.0, 250.0, 89.5], [0, 0, 1]]), "K[1][0] must be 0, got 3.0"),
+    (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, 89.5], [0.1, 0, 1]]), "K[2][0] must be 0, got 0.1"),
+    (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, 89.5], [0, 0, 2]]), "K[2][2] must be 1, got 2.0"),
+    (dict(hfov_deg=None, K=[[250.0, 0, 159.5], [0, 250.0, 89.5], [0, 0, 0]]), "K[2][2] must be 1, got 0.0"),
 ])
 def test_camera_file_fields_are_checked_and_named(fields, message):
     """Every numeric field: a finite number (no bool, no string), whole pixels, principal point in the image."""
@@ -445,6 +458,12 @@ def test_camera_file_fields_are_checked_and_named(fields, message):
 
 def test_camera_files_written_by_run_still_load(clip):
     cam = CameraModel.load(clip / "camera.json")
+    assert set(json.loads((clip / "camera.json").read_text())) | {"roll_rad"} == set(CameraModel.to_dict(
+        CameraModel(W, H, 250.0, 250.0, 159.5, 89.5, 1.3, roll_rad=0.1)))          # every key written is read
+    rolled = CameraModel(W, H, 250.0, 250.0, 159.5, 89.5, 1.3, pitch_rad=0.02, roll_rad=0.1)
+    assert CameraModel.from_dict(rolled.to_dict()) == rolled
+    noisy = [[250.0, 1e-9, 159.5], [-1e-9, 250.0, 89.5], [1e-12, 0.0, 1.0 + 1e-10]]    # float noise in K
+    assert CameraModel.from_dict({"width": W, "height": H, "K": noisy, "height_m": 1.3}).fx == 250.0
     d = {**json.loads((clip / "camera.json").read_text()), "width": float(W)}   # 320.0: a whole number
     assert CameraModel.from_dict(d) == cam
     assert CameraModel.from_dict({**cam.to_dict(), "cx": cam.cx + 1e-9}) == cam   # K and cx agree

@@ -28,15 +28,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
-from harness.scenario import Scenario, load_scenario
+from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_TRACKERS, default_scenarios
+from harness.scenario import Scenario, frames_to_simulate, load_scenario
 from harness.scoring.bootstrap import SequenceCounts, tracker_intervals
 from harness.scoring.evaluate import EvalConfig, evaluate, state_metrics
 from harness.scoring.records import ObjectRecord
 from harness.truth import FrameTruth
 from monorarp.camera import CameraModel
 from monorarp.errors import UserError
-from monorarp.pipeline import ComponentConfig, PipelineConfig, tracker_input
+from monorarp.pipeline import ComponentConfig, PipelineConfig, check_weak_detections, tracker_input
 from monorarp.registry import build, get_factory, uses
 from monorarp.types import Detection, Frame, FrameResult, strong
 
@@ -202,9 +202,12 @@ def pooled_by_range(tracking: Sequence[Mapping]) -> dict | None:
 # ------------------------------------------------------------------------------------ the bench
 @dataclass
 class BenchConfig:
-    scenarios: Sequence[str | Path] = DEFAULT_SCENARIOS
+    #: scenario files (relative: to the current directory); default: the shipped ones, from any directory
+    scenarios: Sequence[str | Path] = field(default_factory=default_scenarios)
     trackers: Sequence[str] = DEFAULT_TRACKERS
     frames: int | None = DEFAULT_FRAMES    # per scenario, capped at its duration x fps; None: the whole scenario
+    #: False: a scenario shorter than ``frames`` is refused instead of capped (the command line's ``--frames N``)
+    cap_frames: bool = True
     #: run each scenario at each of these seeds (one sequence per scenario and seed); None: its own seed
     seeds: Sequence[int] | None = None
     #: the detector, state and risk stages every tracker shares (its tracker stage is replaced by each of ``trackers``)
@@ -214,16 +217,24 @@ class BenchConfig:
     cache: FrameCache | Callable[[], FrameCache | None] | None = None
 
 
-def _load_scenarios(paths: Sequence[str | Path], seeds: Sequence[int] | None = None) -> list[tuple[str, Scenario]]:
+def _load_scenarios(paths: Sequence[str | Path], seeds: Sequence[int] | None = None,
+                    exact_frames: int | None = None) -> list[tuple[str, Scenario]]:
     """(unique name, scenario) of every sequence: each scenario as written, or at each of ``seeds``
-    (named ``"<name> seed <s>"``)."""
+    (named ``"<name> seed <s>"``). A file listed twice is refused (it would count its sequences twice),
+    and with ``exact_frames`` a scenario shorter than that."""
     if not paths:
         raise BenchError("no scenarios given")
     if seeds is not None and (not len(seeds) or any(int(s) != s or s < 0 for s in seeds)):
         raise BenchError(f"seeds must be non-negative integers, got {list(seeds)}")
+    files = [(p, Path(p).resolve()) for p in paths if not isinstance(p, Scenario)]
+    dup = next((str(p) for p, f in files if [g for _, g in files].count(f) > 1), None)
+    if dup is not None:
+        raise BenchError(f"scenario listed twice: {dup}")
     out: list[tuple[str, Scenario]] = []
     for p in paths:
         base = p if isinstance(p, Scenario) else load_scenario(p)
+        if exact_frames is not None:
+            frames_to_simulate(base, exact_frames, p if not isinstance(p, Scenario) else base.name, "benchmark")
         variants = [(base.name, base)] if seeds is None else \
             [(f"{base.name} seed {s}", base.model_copy(update={"seed": int(s)})) for s in seeds]
         for label, sc in variants:
@@ -242,9 +253,10 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
     trackers = check_trackers(config.trackers)
     if config.frames is not None and config.frames <= 0:
         raise BenchError(f"frames must be a positive integer, got {config.frames}")
-    scenarios = _load_scenarios(config.scenarios, config.seeds)
+    scenarios = _load_scenarios(config.scenarios, config.seeds, None if config.cap_frames else config.frames)
     from monorarp.detection import build_detector
 
+    check_weak_detections(config.pipeline.detector, trackers, "--weak-detections")
     cfg = config.pipeline.validate_names()
     detectors = [build_detector(cfg.detector, sc.camera.model()) for _, sc in scenarios]
     cache = config.cache() if callable(config.cache) else config.cache

@@ -20,7 +20,10 @@ def _split(values: list[str] | None) -> list[str]:
 
 
 def parse_seeds(values: list[str] | None) -> list[int] | None:
-    """``["3-5", "9,11"]`` -> ``[3, 4, 5, 9, 11]`` (None: not given); a bad item is a one-line error."""
+    """``["3-5", "9,11"]`` -> ``[3, 4, 5, 9, 11]`` (None: not given); a bad item, or more than
+    :data:`~harness.bench.defaults.MAX_SEEDS` seeds, is a one-line error."""
+    from harness.bench.defaults import MAX_SEEDS
+
     if values is None:
         return None
     seeds: dict[int, None] = {}                        # ordered, without repeats
@@ -32,14 +35,18 @@ def parse_seeds(values: list[str] | None) -> list[int] | None:
             a, b = -1, -1
         if a < 0 or b < a:
             raise UserError(f"--seeds: expected non-negative integers or ranges like 3-12, got {item!r}")
+        if b - a + 1 > MAX_SEEDS:                    # checked before the range is expanded
+            raise UserError(f"--seeds: at most {MAX_SEEDS} seeds, got {item!r} ({b - a + 1} seeds)")
         seeds.update(dict.fromkeys(range(a, b + 1)))
+        if len(seeds) > MAX_SEEDS:
+            raise UserError(f"--seeds: at most {MAX_SEEDS} seeds in all, got {len(seeds)} by {item!r}")
     if not seeds:
         raise UserError("--seeds: no seed given")
     return list(seeds)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS
+    from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_SCENARIOS, DEFAULT_TRACKERS, MAX_SEEDS
 
     p = sub.add_parser("bench", help="benchmark component alternatives on identical frames",
                        description="Benchmark component alternatives on identical simulated frames.")
@@ -52,16 +59,19 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "or more sequences (scenarios x seeds) it adds 95 % bootstrap intervals of each tracker's MOTA "
                     "and IDF1 and of its gap to the first tracker listed.")
     t.add_argument("--scenarios", nargs="+", default=None, metavar="SCENARIO.yaml",
-                   help=f"scenario files, space- or comma-separated (default: {','.join(DEFAULT_SCENARIOS)})")
+                   help=f"scenario files, space- or comma-separated, each at most once (default: the shipped "
+                        f"{','.join(DEFAULT_SCENARIOS)}, found from any directory)")
     t.add_argument("--trackers", nargs="+", default=None, metavar="NAME",
                    help=f"registered trackers, space- or comma-separated (default: {','.join(DEFAULT_TRACKERS)})")
     t.add_argument("--seeds", nargs="+", default=None, metavar="SEED",
                    help="run each scenario at each of these seeds (integers or ranges such as 3-12, space- or "
-                        "comma-separated; one sequence per scenario and seed, all pooled; default: each scenario's own)")
+                        f"comma-separated; at most {MAX_SEEDS} seeds; one sequence per scenario and seed, all "
+                        "pooled; default: each scenario's own)")
     add_pipeline_options(t, stages=("detector",))
     add_oracle_arguments(t)
-    t.add_argument("--frames", type=int, default=DEFAULT_FRAMES, metavar="N",
-                   help=f"frames per scenario, at most its duration x fps (default {DEFAULT_FRAMES})")
+    t.add_argument("--frames", type=int, default=None, metavar="N",
+                   help="frames per scenario, 1 <= N <= its duration_s x fps (default: "
+                        f"{DEFAULT_FRAMES}, or all of a shorter scenario)")
     add_cache_arguments(t)
     t.add_argument("--out", type=Path, default=Path("runs") / "bench-trackers", metavar="DIR",
                    help="output directory (default: runs/bench-trackers; a previous benchmark there is replaced)")
@@ -70,15 +80,18 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_trackers(args: argparse.Namespace) -> int:
-    from harness.bench.defaults import DEFAULT_SCENARIOS, DEFAULT_TRACKERS
+    from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_TRACKERS, default_scenarios
     from harness.bench.trackers import BenchConfig, run_bench, stderr_log, table_iii
+    from harness.frame_cache import check_max_gb
 
     trackers = _split(args.trackers) if args.trackers is not None else list(DEFAULT_TRACKERS)
-    scenarios = _split(args.scenarios) if args.scenarios is not None else list(DEFAULT_SCENARIOS)
+    scenarios = _split(args.scenarios) if args.scenarios is not None else default_scenarios()
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
+    check_max_gb(args.cache_max_gb)              # even with --cache off
     seeds = parse_seeds(args.seeds)
-    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, pipeline=pipeline_config(args), frames=args.frames,
+    cfg = BenchConfig(scenarios=scenarios, trackers=trackers, pipeline=pipeline_config(args),
+                      frames=DEFAULT_FRAMES if args.frames is None else args.frames, cap_frames=args.frames is None,
                       seeds=seeds)
     cfg.cache = lambda: cache_from_args(args)
     result = run_bench(cfg, out_dir=args.out, log=stderr_log)

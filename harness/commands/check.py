@@ -19,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "a table; exit 1 on regression, 0 when everything holds, 2 on bad input.")
     p.add_argument("results", type=Path, metavar="RESULTS", help="run or sweep directory")
     p.add_argument("--baseline", type=Path, default=Path("results/baseline.json"), metavar="FILE",
-                   help="baseline JSON (default: results/baseline.json)")
+                   help="baseline JSON (default: results/baseline.json, relative to the current directory)")
     p.add_argument("--update", action="store_true",
                    help="write a new baseline from RESULTS (keeping existing tolerances) instead of checking")
     p.add_argument("--failures-only", action="store_true", help="print only the rows that fail")

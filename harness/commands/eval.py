@@ -3,7 +3,8 @@
 
 Scores the pipeline on a KITTI object or tracking dataset (:mod:`harness.kitti_eval`): ``OUT/metrics.json``
 (the run keys plus ``kitti_ap`` and ``dataset``) and ``OUT/per_object.csv``, written all or nothing.
-Exit status 0, or 2 on bad input (one line on stderr naming the file and line, nothing written).
+Exit status 0, or 2 on bad input (one line on stderr naming the file and line, or the option, nothing written):
+also ``--frames`` beyond the dataset's frames and ``--tracker`` given for an object dataset (which runs none).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import argparse
 import math
 from pathlib import Path
 
-from monorarp.config_options import add_pipeline_options, pipeline_config
+from monorarp.config_options import add_pipeline_options, default_name, pipeline_config
 from monorarp.errors import UserError
 from monorarp.pipeline import PipelineConfig
 
@@ -35,17 +36,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="registered detector, an ONNX model, or 'labels' (the label boxes of Car/Van/Truck as "
                         f"detections: an oracle); default {PipelineConfig().detector.name}")
     add_pipeline_options(k, stages=("tracker",))   # tracking sequences only; object datasets use none
+    k.set_defaults(tracker=_Default(default_name("tracker")))   # told from a given --tracker (refused on objects)
     k.add_argument("--camera-height", type=float, default=None, metavar="M",
                    help="camera height above the road (m); overrides the calibration's")
     k.add_argument("--horizon-row", type=float, default=None, metavar="PX",
                    help="image row of the horizon (px); default: from the calibration, else cy of P2 (level)")
     k.add_argument("--fps", type=float, default=None, metavar="HZ",
                    help="frame rate of tracking sequences (default: export.json's, else KITTI's 10 Hz)")
-    k.add_argument("--frames", type=int, default=None, metavar="N", help="evaluate only the first N frames")
+    k.add_argument("--frames", type=int, default=None, metavar="N",
+                   help="evaluate only the first N frames (1 .. the dataset's frames, all sequences together)")
     k.add_argument("--out", type=Path, required=True, metavar="OUT",
                    help="output directory (created; a previous evaluation there is replaced)")
     k.set_defaults(func=run_kitti)
     p.set_defaults(func=_no_dataset)
+
+
+class _Default(str):
+    """The default of an option, told apart from the same name given on the command line."""
 
 
 def _no_dataset(args: argparse.Namespace) -> int:
@@ -78,8 +85,15 @@ def run_kitti(args: argparse.Namespace) -> int:
         if detector == "oracle":
             raise UserError("--detector: the run oracle needs simulation truth; on KITTI use --detector labels")
         get_factory("detector", detector)            # unknown names fail before anything is read
+    tracker_given = not isinstance(args.tracker, _Default)
     tracker = pipeline_config(args).tracker.name
     ds = open_dataset(args.root)
+    if tracker_given and ds.kind == "object":
+        raise UserError(f"--tracker: {ds.root} is a KITTI object dataset, whose images are scored one by one "
+                        "without a tracker; --tracker applies to tracking datasets (image_02/, label_02/)")
+    if args.frames is not None and args.frames > ds.n_frames:
+        seqs = f" ({len(ds.sequences)} sequences together)" if ds.kind == "tracking" and len(ds.sequences) > 1 else ""
+        raise UserError(f"--frames: {args.frames} exceeds the dataset's {ds.n_frames} frames{seqs} in {ds.root}")
     opts = KittiEvalOptions(detector=detector, tracker=tracker, camera_height_m=args.camera_height,
                             horizon_row=args.horizon_row, fps=args.fps, frames=args.frames)
     metrics = evaluate_kitti(ds, opts, args.out)

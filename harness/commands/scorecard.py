@@ -12,6 +12,7 @@ from pathlib import Path
 from monorarp.errors import UserError
 
 SUITE_CHOICES = ("nhtsa", "ncap", "cut_in", "nominal", "risk", "all")
+MAX_TRIALS = 1000          # --trials: a protocol file's own limit
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,11 +32,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_pipeline_options(p, stages=("detector", "tracker"))
     p.add_argument("--warning-threshold", type=float, default=None, metavar="S",
                    help="TTC threshold of the warning stage, s (default: the stage's own, 3.0)")
-    p.add_argument("--trials", type=int, default=None, metavar="N", help="trials per test (default: the protocol's)")
+    p.add_argument("--trials", type=int, default=None, metavar="N",
+                   help=f"trials per test, 1..{MAX_TRIALS} (nominal tests: seeds per scenario; default: the protocol's)")
     p.add_argument("--frames", type=int, default=None, metavar="N", help="cap on frames per run (default none)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
     add_executor_arguments(p)
     p.set_defaults(func=run)
+
+
+def check_protocol_files(paths: list[Path]) -> None:
+    """``--protocol`` files: each a file (not a directory), none given twice; :class:`UserError` otherwise."""
+    seen: set[Path] = set()
+    for path in paths:
+        try:
+            if path.is_dir():
+                raise UserError(f"--protocol {path}: is a directory; give protocol files (FILE.yaml)")
+            key = path.resolve()
+        except OSError:            # e.g. a name too long: the scorecard's own check says so
+            continue
+        if key in seen:
+            raise UserError(f"--protocol {path}: given twice")
+        seen.add(key)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -50,6 +67,9 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--warning-threshold: must be in (0, 10] s, got {args.warning_threshold}")
     if args.protocol and args.suite:
         raise UserError("--protocol and --suite: give one or the other")
+    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
+        raise UserError(f"--trials: must be 1..{MAX_TRIALS}, got {args.trials}")
+    check_protocol_files(args.protocol or [])
     suites = SUITES if not args.suite or "all" in args.suite else tuple(dict.fromkeys(args.suite))
     cfg = pipeline_config(args)
     opts = ScorecardOptions(suites=suites, protocol_files=tuple(args.protocol or ()), detector=cfg.detector.name,

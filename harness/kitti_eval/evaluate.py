@@ -26,6 +26,7 @@ columns plus ``sample``, ``type``, ``truncated``, ``occluded``, ``difficulty``, 
 from __future__ import annotations
 
 import csv
+import math
 import threading
 import time
 from collections import OrderedDict
@@ -44,9 +45,9 @@ from harness.scoring.evaluate import EvalConfig, evaluate
 from harness.scoring.records import COLUMNS, _cell
 from harness.truth import EgoTruth, FrameTruth, ObjectTruth
 from monorarp import registry
-from monorarp.camera import CameraModel
+from monorarp.camera import CameraError, CameraModel
 from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
-from monorarp.readers import read_json_or_none
+from monorarp.readers import MAX_CONFIG_BYTES, read_json
 from monorarp.types import Detection, Frame, FrameResult, RiskEstimate, Track, WarningState, strong
 
 METRICS_NAME = "metrics.json"
@@ -173,12 +174,28 @@ def add_velocities(truths: list[KittiFrameTruth]) -> list[KittiFrameTruth]:
 
 # ------------------------------------------------------------------------------ cameras
 def read_manifest(root: Path) -> dict:
-    """``export.json`` of a ``monorarp export`` dataset ({} when absent or unreadable)."""
-    for p in (root / MANIFEST_NAME, root.parent / MANIFEST_NAME):
-        if p.is_file():
-            data = read_json_or_none(p)
-            return data if isinstance(data, dict) else {}
-    return {}
+    """``export.json`` of a ``monorarp export`` dataset at ``root`` (for KITTI's ``DIR/training`` layout, also in
+    ``DIR``); {} when there is none. One that is there is checked, as its ``fps`` sets the frame times and its
+    ``camera`` the image size: a JSON object whose ``fps``, when present, is a positive number and whose
+    ``camera``, when present, is a camera (:meth:`CameraModel.from_dict`); :class:`KittiInputError` naming
+    the file and field otherwise."""
+    places = [root / MANIFEST_NAME] + ([root.parent / MANIFEST_NAME] if root.name == "training" else [])
+    p = next((p for p in places if p.exists()), None)
+    if p is None:
+        return {}
+    data = read_json(p, "export manifest", KittiInputError, MAX_CONFIG_BYTES)
+    if not isinstance(data, dict):
+        raise KittiInputError(f"{p}: {MANIFEST_NAME} must hold a JSON object, got {type(data).__name__}")
+    if "fps" in data:
+        fps = data["fps"]
+        if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not (math.isfinite(fps) and fps > 0):
+            raise KittiInputError(f"{p}: field fps must be a positive number (frames per second), got {fps!r:.60}")
+    if "camera" in data:
+        try:
+            CameraModel.from_dict(data["camera"], source=f"{p}: field camera")
+        except CameraError as e:
+            raise KittiInputError(str(e)) from None
+    return data
 
 
 class Cameras:
@@ -187,8 +204,8 @@ class Cameras:
     def __init__(self, opts: KittiEvalOptions, manifest: dict) -> None:
         self.opts = opts
         self.lock = threading.Lock()
-        cam = manifest.get("camera") if isinstance(manifest.get("camera"), dict) else {}
-        self.size = (cam.get("width"), cam.get("height")) if cam.get("width") and cam.get("height") else None
+        cam = manifest.get("camera")          # checked by read_manifest
+        self.size = (int(cam["width"]), int(cam["height"])) if cam else None
         self.cache: dict[tuple, tuple[CameraModel, np.ndarray, dict]] = {}
 
     def get(self, sample: Sample, width: int, height: int) -> tuple[CameraModel, np.ndarray, dict]:
@@ -292,8 +309,7 @@ class _Pipelines:
 def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[KittiFrameTruth], list[FrameResult], dict]:
     """Run the pipeline over ``ds``; returns truths, results (global frame indices) and run facts."""
     manifest = read_manifest(ds.root)
-    fps = opts.fps or (manifest.get("fps") if isinstance(manifest.get("fps"), (int, float))
-                       and manifest.get("fps", 0) > 0 else None) or DEFAULT_FPS
+    fps = opts.fps or manifest.get("fps") or DEFAULT_FPS
     cameras = Cameras(opts, manifest)
     pipes = _Pipelines(opts, ds.kind)
     truths: list[KittiFrameTruth] = []

@@ -62,7 +62,8 @@ def camera_from_calib(calib: dict[str, np.ndarray], width: int, height: int, cam
     ``t`` (m) and where height and pitch came from. Options win over the calibration.
 
     Raises :class:`~monorarp.camera.CameraError` naming ``where`` when no height can be had or the
-    result is impossible (e.g. the horizon outside the image).
+    result is impossible (e.g. the horizon outside the image), naming ``--horizon-row`` when that row is
+    outside the image or gives a pitch beyond +-45 deg.
     """
     try:
         K, t = intrinsics(calib["P2"])
@@ -80,7 +81,15 @@ def camera_from_calib(calib: dict[str, np.ndarray], width: int, height: int, cam
                           f"Tr_velo_to_cam/Tr_imu_to_velo are not a monorarp export's); give --camera-height M "
                           f"(KITTI's rig: {KITTI_RIG_HEIGHT_M})")
     if horizon_row is not None:
-        kw["pitch_rad"] = math.atan((K[1, 2] - float(horizon_row)) / K[1, 1])
+        row = float(horizon_row)
+        if not 0 <= row <= height - 1:      # the option's fault, not the calibration's
+            raise CameraError(f"--horizon-row: row {row:g} px lies outside the {width}x{height} image "
+                              f"(0..{height - 1})")
+        kw["pitch_rad"] = math.atan((K[1, 2] - row) / K[1, 1])
+        if not abs(kw["pitch_rad"]) < math.radians(45):
+            raise CameraError(f"--horizon-row: row {row:g} px puts the camera's pitch at "
+                              f"{math.degrees(kw['pitch_rad']):.1f} deg with {where}'s cy {K[1, 2]:g} and "
+                              f"fy {K[1, 1]:g} (at most +-45 deg)")
         info["pitch_source"] = "--horizon-row"
     elif mount is not None:
         info["pitch_source"] = "calibration (Tr_velo_to_cam)"

@@ -47,6 +47,22 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
+#: The fields (besides ``test`` and ``kind``) each kind of test uses; setting another one is refused, as it
+#: would be ignored. A rear_end test uses ``start_ttc_s`` unless its target brakes, then ``gap_m``,
+#: ``target_decel_mps2`` and ``brake_at_s`` instead.
+_CONFLICT = {"ego_speed_kmh", "target_speed_kmh", "adjacent_traffic", "trials", "min_trials_passed", "duration_s"}
+FIELDS_USED = {
+    "rear_end": _CONFLICT | {"target_motion", "lateral_offset", "required_ttc_s", "start_ttc_s", "gap_m",
+                             "target_decel_mps2", "brake_at_s"},
+    "cut_in": _CONFLICT | {"gap_m", "cut_in_at_s", "required_ttc_s"},
+    "pass_by": _CONFLICT | {"gap_m", "cut_in_at_s"},
+    "nominal": {"scenarios", "seeds", "duration_s", "warmup_s"},
+}
+_BRAKING_ONLY = ("gap_m", "target_decel_mps2", "brake_at_s")
+_WHY_UNUSED = {"warmup_s": "only a nominal test's traffic has a warm-up (a conflict's is timed from t = 0)",
+               "required_ttc_s": "a pass_by test is no conflict (any warning fails it): it has no required TTC"}
+
+
 class Test(_Model):
     """One test of a suite; list-valued fields expand into one run per combination and trial."""
 
@@ -72,6 +88,14 @@ class Test(_Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> "Test":
+        for name in type(self).model_fields:
+            if name in ("test", "kind") or name not in self.model_fields_set:
+                continue
+            if name not in FIELDS_USED[self.kind]:
+                raise ValueError(f"{name}: {_WHY_UNUSED.get(name, f'a {self.kind} test does not use it')}")
+            if (self.kind == "rear_end" and name in (*_BRAKING_ONLY, "start_ttc_s")
+                    and (name in _BRAKING_ONLY) != (self.target_motion == "braking")):
+                raise ValueError(f"{name}: a rear_end test with a {self.target_motion} target does not use it")
         for name in ("ego_speed_kmh", "gap_m", "target_decel_mps2", "lateral_offset", "seeds", "scenarios"):
             shown = [Path(v).stem if name == "scenarios" else _fmt(v) for v in getattr(self, name)]
             dup = next((v for v, k in zip(getattr(self, name), shown) if shown.count(k) > 1), None)
