@@ -63,15 +63,10 @@ def open_source(path: str | Path, n_frames: int | None = None) -> ExportSource:
 
 def _scenario(path: Path, n_frames: int | None) -> ExportSource:
     from harness.frame_feed import rendered_frames
-    from harness.scenario import ScenarioError, load_scenario
+    from harness.scenario import ScenarioError, frames_to_simulate, load_scenario
 
     scenario = load_scenario(path)
-    if scenario.n_frames <= 0:
-        raise ExportInputError(f"{path}: duration_s * fps gives no frames")
-    if n_frames is not None and n_frames > scenario.n_frames:
-        raise ExportInputError(f"--frames: {n_frames} exceeds the scenario's {scenario.n_frames} frames "
-                               f"(duration_s * fps) in {path}")
-    n = scenario.n_frames if n_frames is None else n_frames
+    n = frames_to_simulate(scenario, n_frames, path, "export")
     try:
         frames = rendered_frames(scenario, n)          # sets the simulation up: its errors come here
     except ScenarioError as e:

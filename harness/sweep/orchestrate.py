@@ -132,10 +132,11 @@ def execute(ex: Executor, todo: Sequence[RunTask], runs_dir: Path, progress: boo
     bar = _progress(len(todo), progress)
     outcomes = ex.run(todo, runs_dir)
     executed: list[RunOutcome] = []
+    n_failed = 0
     try:
         for outcome in outcomes:
             executed.append(outcome)
-            n_failed = sum(o.status != "ok" for o in executed)
+            n_failed += outcome.status != "ok"
             bar.set_postfix_str(f"failed {n_failed}" if n_failed else "", refresh=False)
             bar.update(1)
     finally:
