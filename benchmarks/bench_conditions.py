@@ -25,14 +25,14 @@ import time
 import numpy as np
 
 from harness.bench.script import run_script
-from harness.ground_truth import frame_truth
+from harness.world.ground_truth import frame_truth
 from harness.render.renderer import Renderer
-from harness.scenario import load_scenario_dict, parse_scenario
+from harness.world.scenario import load_scenario_dict, parse_scenario
 from harness.scoring.evaluate import out_of_range
 from harness.scoring.match import MIN_IOU, as_boxes, split_ignored
 from harness.simulation.simulator import simulate
 from monorarp.detection import build_detector
-from monorarp.pipeline import ComponentConfig
+from monorarp.pipeline.runner import ComponentConfig
 
 CONDITIONS = {
     "day": None,

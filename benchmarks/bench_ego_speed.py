@@ -40,7 +40,7 @@ def synthetic_sequences(fps: float, seconds: float, period: float):
 
 def rendered_sequences(fps: float, seconds: float, period: float):
     from harness.render.renderer import Renderer
-    from harness.scenario import load_scenario_dict, parse_scenario
+    from harness.world.scenario import load_scenario_dict, parse_scenario
     from harness.simulation.simulator import simulate
 
     base = load_scenario_dict(ROOT / "scenarios" / "lane_speed.yaml")

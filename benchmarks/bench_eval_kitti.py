@@ -31,7 +31,7 @@ def export_dataset(scenario: Path, size: tuple[int, int], frames: int, kind: str
     from harness.export.exporter import export
     from harness.export.source import open_source
 
-    from harness.scenario import load_scenario_dict
+    from harness.world.scenario import load_scenario_dict
 
     data = load_scenario_dict(scenario)             # a missing or malformed file: one line (ScenarioError)
     data["camera"] = {**(data.get("camera") or {}), "width": size[0], "height": size[1]}

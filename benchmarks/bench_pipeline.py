@@ -17,12 +17,12 @@ import time
 import numpy as np
 
 from harness.bench.script import run_script
-from monorarp.camera import CameraModel
-from monorarp.pipeline import Pipeline, run_sync, run_threaded
-from monorarp.risk import TTCRiskEstimator
-from monorarp.state import StateEstimator
+from monorarp.core.camera import CameraModel
+from monorarp.pipeline.runner import Pipeline, run_sync, run_threaded
+from monorarp.risk.estimators import TTCRiskEstimator
+from monorarp.state.estimator import StateEstimator
 from monorarp.tracking.particle import ParticleTracker
-from monorarp.types import Detection, Frame
+from monorarp.core.types import Detection, Frame
 
 CAM = CameraModel.from_fov(640, 360, 60.0, 1.3)
 

@@ -14,10 +14,10 @@ import time
 import numpy as np
 
 from harness.bench.script import run_script
-from harness.ground_truth import frame_truth
+from harness.world.ground_truth import frame_truth
 from harness.render.renderer import Renderer
-from harness.scenario import Scenario, parse_scenario
-from harness.world import VehicleState, WorldState
+from harness.world.scenario import Scenario, parse_scenario
+from harness.world.state import VehicleState, WorldState
 
 
 def scenario_for(width: int, height: int) -> Scenario:

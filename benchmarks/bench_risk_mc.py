@@ -19,9 +19,9 @@ import time
 import numpy as np
 
 from harness.bench.script import run_script
-from monorarp.risk_mc.estimator import MonteCarloRisk
-from monorarp.risk_mc import rollout_numba
-from monorarp.types import ObjectState
+from monorarp.risk.monte_carlo.estimator import MonteCarloRisk
+from monorarp.risk.monte_carlo import rollout_numba
+from monorarp.core.types import ObjectState
 
 
 def scene(n_vehicles: int, seed: int = 1) -> dict[int, ObjectState]:

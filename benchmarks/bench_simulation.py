@@ -12,7 +12,7 @@ import time
 from highway_env.road.road import Road
 
 from harness.bench.script import run_script
-from harness.scenario import parse_scenario
+from harness.world.scenario import parse_scenario
 from harness.simulation.simulator import Simulation
 
 FRAMES = 300

@@ -44,7 +44,7 @@ def write_spec(tmp: Path, args: argparse.Namespace, trackers: list[str] | None =
 
 
 def bench(spec: Path, out: Path, executor: str, workers: int, cache: object = None) -> dict:
-    """One ``run_sweep`` into ``out``; ``cache``: a :class:`harness.frame_cache.FrameCache` or None (off)."""
+    """One ``run_sweep`` into ``out``; ``cache``: a :class:`harness.run.frame_cache.FrameCache` or None (off)."""
     from harness.sweep.orchestrate import run_sweep
 
     t0 = time.perf_counter()
@@ -72,7 +72,7 @@ def main() -> None:
     ap.add_argument("--ray", action="store_true", help="also run each worker count on a local Ray instance")
     ap.add_argument("--cache", default="off", metavar="DIR|off", help="frame cache (default off)")
     args = ap.parse_args()
-    from harness.frame_cache import open_cache
+    from harness.run.frame_cache import open_cache
 
     cache = open_cache(args.cache, None)
 

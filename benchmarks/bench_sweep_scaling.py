@@ -75,7 +75,7 @@ def scaling(tmp: Path, args: argparse.Namespace) -> list[dict]:
 
 
 def cache_part(tmp: Path, args: argparse.Namespace) -> None:
-    from harness.frame_cache import FrameCache
+    from harness.run.frame_cache import FrameCache
 
     sub = argparse.Namespace(**{**vars(args), "seeds": args.cache_seeds})
     spec = write_spec(tmp, sub, trackers=args.variants, name="variants")

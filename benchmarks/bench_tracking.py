@@ -14,7 +14,7 @@ the particle tracker at MOTA >= 0.95 and IDF1 >= 0.95, without losing what ``hig
   sequences could move it;
 * the wall time.
 
-Frames come from the frame cache (``harness.frame_cache``; the outputs are identical with
+Frames come from the frame cache (``harness.run.frame_cache``; the outputs are identical with
 ``--no-cache``). ``--out DIR`` keeps each whole run's files and the pooled benchmark's
 ``trackers.json``. Nothing is asserted; the figures are printed.
 """
@@ -29,10 +29,10 @@ from harness.bench.script import run_script
 from harness.bench.targets import target_table
 from harness.bench.trackers import BenchConfig, run_bench
 from harness.commands.bench import parse_seeds
-from harness.frame_cache import FrameCache, default_dir
-from harness.run import run_scenario
-from harness.scenario import load_scenario
-from monorarp.pipeline import ComponentConfig, PipelineConfig
+from harness.run.frame_cache import FrameCache, default_dir
+from harness.run.runner import run_scenario
+from harness.world.scenario import load_scenario
+from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 #: scenario -> MOTA and IDF1 it must reach (dense_traffic: the target; the others: what they have)

@@ -1,5 +1,5 @@
 import sys
 
-from monorarp.cli import main
+from monorarp.app.cli import main
 
 sys.exit(main())

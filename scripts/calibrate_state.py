@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.scoring.match import as_boxes, match_boxes
-from monorarp import registry
-from monorarp.state_geometry import border_flags, measure_boxes
+from monorarp.pipeline import registry
+from monorarp.state.geometry import border_flags, measure_boxes
 
 
 def autocorr(series: list[np.ndarray], lag: int) -> float:

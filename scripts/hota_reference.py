@@ -67,8 +67,8 @@ def _read_mot(path: Path) -> np.ndarray:
 
 def _run_tracker(name: str, det: np.ndarray, n_frames: int, camera) -> list[str]:
     from harness.export.mot import box_to_mot, mot_to_box
-    from monorarp.registry import build
-    from monorarp.types import Detection
+    from monorarp.pipeline.registry import build
+    from monorarp.core.types import Detection
 
     trk = build("tracker", name, {}, camera)
     lines = []
@@ -140,7 +140,7 @@ def make_inputs(work: Path) -> None:
     from monorarp.detection import build_detector
     from harness.export.exporter import export
     from harness.export.source import open_source
-    from monorarp.pipeline import ComponentConfig
+    from monorarp.pipeline.runner import ComponentConfig
 
     if work.exists():
         shutil.rmtree(work)

@@ -24,7 +24,7 @@ $M video "$OUT/run_online/frames.mp4" --camera "$OUT/run_online/camera.json" --d
 if [ -n "${QUICK:-}" ]; then exit 0; fi
 $M sweep scenarios/ci.yaml --out "$OUT/sweep" --cache off --no-progress > "$OUT/sweep.txt"
 $M check "$OUT/sweep" --baseline results/baseline.json --failures-only > "$OUT/check.txt"
-$M bench trackers --scenarios scenarios/static_single.yaml --trackers particle sort kcf --frames 30 --cache off \
+$M bench trackers --scenarios scenarios/static_single.yaml --trackers particle sort kcf --frames 15 --cache off \
     --out "$OUT/bench" > "$OUT/bench.txt" 2>&1
 $M export "$OUT/run_online" --format kitti --out "$OUT/export_kitti" > "$OUT/export.txt" 2>&1
 $M eval kitti "$OUT/export_kitti" --out "$OUT/eval_kitti" > "$OUT/eval.txt" 2>&1

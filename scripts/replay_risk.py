@@ -1,6 +1,6 @@
 """Replay the adverse-manoeuvre risk over a risk scorecard's runs and score it, with held-out splits.
 
-How ``manoeuvre_ttc``'s defaults (``monorarp/risk.py``, :class:`ManoeuvreTTCRisk`) were chosen and
+How ``manoeuvre_ttc``'s defaults (``monorarp/risk/estimators.py``, :class:`ManoeuvreTTCRisk`) were chosen and
 checked: ``monorarp scorecard --suite risk --out DIR`` writes every run's per-object states
 (``per_object.csv``); this script rebuilds each frame's states from them (the estimates, or with
 ``--truth`` the true states), scores :class:`ManoeuvreTTCRisk` for every brake x lateral x hold x looming
@@ -25,9 +25,9 @@ import numpy as np
 
 from harness.scorecard.run import _frame_arrays
 from harness.scorecard.score import HORIZONS_S, pooled_risk
-from monorarp.camera import CameraModel
-from monorarp.risk import ManoeuvreTTCRisk
-from monorarp.types import ObjectState
+from monorarp.core.camera import CameraModel
+from monorarp.risk.estimators import ManoeuvreTTCRisk
+from monorarp.core.types import ObjectState
 
 EST = ("track_id", "d_x_est", "d_y_est", "v_x_est", "v_y_est")
 TRUTH = ("gt_id", "d_lat_gt", "d_long_gt", "v_lat_gt", "v_long_gt")

@@ -1,6 +1,6 @@
 """Replay the state estimator and the warning stage over cached tracks of a protocol's runs.
 
-How the warning stage's defaults were chosen (``monorarp/warning.py``, ``monorarp/state.py``):
+How the warning stage's defaults were chosen (``monorarp/warning/fcw.py``, ``monorarp/state/estimator.py``):
 the detector and the tracker run once per run of a protocol (by default the tuning set,
 ``scenarios/fcw/tuning.yaml``, which shares no speed, gap or seed with a scorecard suite or
 the CI subset) and their tracks are cached, with the default state estimator's patch
@@ -27,14 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.frame_feed import rendered_frames
-from harness.scenario import parse_scenario
+from harness.run.frame_feed import rendered_frames
+from harness.world.scenario import parse_scenario
 from harness.scorecard.run import ScorecardOptions, build_tasks
 from harness.scorecard.score import trial_passed
 from harness.scoring.warnings import warning_metrics
-from monorarp import registry
-from monorarp.pipeline import Pipeline, PipelineConfig, tracker_input
-from monorarp.types import FrameResult, RiskEstimate
+from monorarp.pipeline import registry
+from monorarp.pipeline.runner import Pipeline, PipelineConfig, tracker_input
+from monorarp.core.types import FrameResult, RiskEstimate
 
 _NO_IMAGE = np.zeros((1, 1), dtype=np.uint8)   # the recorded registration needs no frame
 

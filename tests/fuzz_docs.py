@@ -36,7 +36,7 @@ from typing import Any
 import yaml
 from hypothesis import strategies as st
 
-from monorarp.readers import MAX_CONFIG_BYTES, MAX_DEPTH
+from monorarp.core.readers import MAX_CONFIG_BYTES, MAX_DEPTH
 
 
 @dataclass(frozen=True)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 def first_frame(scenario: dict):
     """``(scenario, image, truth)`` of a scenario dict's first frame (BGR image, :class:`FrameTruth`)."""
-    from harness.ground_truth import frame_truth
+    from harness.world.ground_truth import frame_truth
     from harness.render.renderer import Renderer
-    from harness.scenario import parse_scenario
+    from harness.world.scenario import parse_scenario
     from harness.simulation.simulator import simulate
 
     scen = parse_scenario(scenario)

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from monorarp.camera import CameraModel
+from monorarp.core.camera import CameraModel
 
 
 def default_camera(width: int = 640, height: int = 360) -> CameraModel:

@@ -8,7 +8,7 @@ import pytest
 
 from harness.bench.script import run_script
 from harness.bench.targets import target_table
-from monorarp.errors import UserError
+from monorarp.core.errors import UserError
 
 ROOT = Path(__file__).resolve().parents[1]
 

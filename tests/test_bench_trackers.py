@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 import yaml
 
-import harness.frame_feed
+import harness.run.frame_feed
 from harness.bench.trackers import pooled_tracking
-from harness.oracle import OracleDetector
-from monorarp import registry
-from monorarp.cli import main
-from monorarp.errors import UserError
-from monorarp.pipeline import ComponentConfig, PipelineConfig
+from harness.run.oracle import OracleDetector
+from monorarp.pipeline import registry
+from monorarp.app.cli import main
+from monorarp.core.errors import UserError
+from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
 from monorarp.tracking.particle import ParticleTracker
 
 N_FRAMES = 8
@@ -142,7 +142,7 @@ def test_unknown_tracker_refused_before_rendering(tmp_path, monkeypatch, capsys)
     def no_render(*a, **k):
         raise AssertionError("rendered")
 
-    monkeypatch.setattr(harness.frame_feed, "rendered_frames", no_render)
+    monkeypatch.setattr(harness.run.frame_feed, "rendered_frames", no_render)
     scen = tmp_path / "tiny.yaml"
     scen.write_text(yaml.safe_dump(SCENARIO))
     rc = main(["bench", "trackers", "--scenarios", str(scen), "--trackers", "particle,boosting",
@@ -214,13 +214,13 @@ def test_seeds_run_each_scenario_once_per_seed(tmp_path, monkeypatch):
     scen = tmp_path / "tiny.yaml"
     scen.write_text(yaml.safe_dump({**SCENARIO, "traffic": {"vehicles_count": 3}}))
     seen: list[int] = []
-    real = harness.frame_feed.rendered_frames
+    real = harness.run.frame_feed.rendered_frames
 
     def recording(scenario, n):
         seen.append(scenario.seed)
         return real(scenario, n)
 
-    monkeypatch.setattr(harness.frame_feed, "rendered_frames", recording)
+    monkeypatch.setattr(harness.run.frame_feed, "rendered_frames", recording)
     registry.add("tracker", "forgetful", Forgetful)
     Forgetful.made = 0
     out = tmp_path / "out"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from monorarp.tracking.bookkeeping import TrackBook, detections_array
-from monorarp.types import Detection
+from monorarp.core.types import Detection
 
 
 def test_ids_count_up_and_columns_stay_aligned():

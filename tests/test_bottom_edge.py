@@ -120,7 +120,7 @@ def test_empty_input():
 def test_detector_option_is_validated_and_applied():
     """On a rendered frame: ``refine_bottom=True`` = the plain detector's boxes through :func:`refine_bottom`."""
     from harness.render.renderer import Renderer
-    from harness.scenario import parse_scenario
+    from harness.world.scenario import parse_scenario
     from harness.simulation.simulator import simulate
     from tests.test_detection import SCENE
 

@@ -1,11 +1,11 @@
-"""The one IoU (monorarp.boxes) against independent references: a scalar loop and pixel counting."""
+"""The one IoU (monorarp.core.boxes) against independent references: a scalar loop and pixel counting."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from monorarp.boxes import intersection, iou, iou_matrix
+from monorarp.core.boxes import intersection, iou, iou_matrix
 
 from tracking_helpers import iou_ref
 

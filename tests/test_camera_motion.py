@@ -10,15 +10,15 @@ import cv2
 import numpy as np
 import pytest
 
-from harness.camera_motion import CameraMotion, CameraMotionModel
-from harness.ground_truth import frame_truth
-from harness.render.geometry import vehicle_pose_world
+from harness.world.camera_motion import CameraMotion, CameraMotionModel
+from harness.world.ground_truth import frame_truth
+from harness.world.geometry import vehicle_pose_world
 from harness.render.meshes import vehicle_trimesh
 from harness.render.renderer import Renderer
 from harness.render.renderer import SKY_RGB
-from harness.scenario import ScenarioError, parse_scenario
-from harness.world import VehicleState, WorldState
-from monorarp.camera import CameraModel
+from harness.world.scenario import ScenarioError, parse_scenario
+from harness.world.state import VehicleState, WorldState
+from monorarp.core.camera import CameraModel
 
 NOMINAL = CameraModel.from_fov(640, 360, 70.0, 1.3, math.radians(2.0))
 

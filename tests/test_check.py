@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from harness.check import DEFAULT_RULES, judge, load_baseline
+from harness.check.baseline import DEFAULT_RULES, judge, load_baseline
 from harness.sweep.expand import load_and_expand
-from monorarp.cli import main
+from monorarp.app.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 

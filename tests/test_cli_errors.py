@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from monorarp.cli import main
+from monorarp.app.cli import main
 
 
 @pytest.mark.parametrize("argv, line", [

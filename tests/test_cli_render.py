@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 import yaml
 
-from monorarp.camera import CameraModel
-from monorarp.cli import main
-from monorarp.video.writer import read_video
+from monorarp.core.camera import CameraModel
+from monorarp.app.cli import main
+from monorarp.app.video.writer import read_video
 
 ROOT = Path(__file__).resolve().parents[1]
 N_FRAMES = 5
@@ -141,7 +141,7 @@ def test_video_matches_ground_truth_and_renderer(renders):
     np.testing.assert_allclose([f.t for f in frames], [r["t"] for r in recs], atol=1e-3)
     # frame 0 decoded from the mp4 vs. the renderer's own BGR image: lossy but close, same channel order
     from harness.render.renderer import Renderer
-    from harness.scenario import load_scenario
+    from harness.world.scenario import load_scenario
     from harness.simulation.simulator import simulate
 
     scenario = load_scenario(scen)

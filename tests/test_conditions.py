@@ -14,9 +14,9 @@ import pytest
 from harness.render import effects
 from harness.render.meshes import vehicle_color
 from harness.render.renderer import Renderer
-from harness.scenario import ScenarioError, load_scenario, parse_scenario
-from harness.world import VehicleState, WorldState
-from monorarp.cli import main
+from harness.world.scenario import ScenarioError, load_scenario, parse_scenario
+from harness.world.state import VehicleState, WorldState
+from monorarp.app.cli import main
 
 LANE_W = 4.0
 W, H = 320, 180

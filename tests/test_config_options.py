@@ -1,4 +1,4 @@
-"""The shared pipeline options (monorarp/config_options.py): every command's options give the
+"""The shared pipeline options (monorarp/app/options.py): every command's options give the
 PipelineConfig it built before, defaults are the config's, bad names are one line and exit 2."""
 
 from __future__ import annotations
@@ -8,12 +8,12 @@ from pathlib import Path
 
 import pytest
 
-from monorarp import registry
-from monorarp.cli import build_parser, main
-from monorarp.config_options import (CLI_EGO_SPEED, WARNING_THRESHOLD_S, add_pipeline_options,
+from monorarp.pipeline import registry
+from monorarp.app.cli import build_parser, main
+from monorarp.app.options import (CLI_EGO_SPEED, WARNING_THRESHOLD_S, add_pipeline_options,
                                      default_pipeline_config, pipeline_config)
-from monorarp.errors import UserError
-from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
+from monorarp.core.errors import UserError
+from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "monorarp" / "models" / "centernet_vehicle.onnx"
@@ -81,7 +81,7 @@ def test_onnx_path_is_the_detector_name_and_builds(tmp_path):
     cfg = pipeline_config(parse("video", "in.mp4", "--camera", "c.yaml", "--detector", str(MODEL),
                                 "--refine-bottom", "on"))
     assert cfg.detector == C(str(MODEL), refine_bottom=True)
-    from monorarp.camera import CameraModel
+    from monorarp.core.camera import CameraModel
     from monorarp.detection.centernet import CenterNetDetector
 
     pipe = Pipeline.from_config(cfg, CameraModel.from_fov(640, 360, 70.0, height_m=1.3))

@@ -15,7 +15,7 @@ from monorarp.detection import load_detector
 from monorarp.detection.centernet import CenterNetDetector
 from monorarp.detection.yolo import YoloDetector  # noqa: E402
 from monorarp.detection.centernet import DEFAULT_MODEL  # noqa: E402
-from monorarp.errors import UserError  # noqa: E402
+from monorarp.core.errors import UserError  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -204,9 +204,9 @@ SCENE = {
 def test_committed_centernet_finds_rendered_vehicles():
     """AP@0.5 >= 0.8 against the harness's ground-truth boxes (visibility >= 0.5 and >= 8 px tall required;
     other visible vehicles ignored)."""
-    from harness.ground_truth import frame_truth
+    from harness.world.ground_truth import frame_truth
     from harness.render.renderer import Renderer
-    from harness.scenario import parse_scenario
+    from harness.world.scenario import parse_scenario
     from harness.simulation.simulator import simulate
 
     sys.path.insert(0, str(ROOT))
@@ -278,7 +278,7 @@ def test_shipped_model_gives_weak_detections_only_when_configured():
 
 def _rendered_frames(n: int) -> tuple[list[np.ndarray], object]:
     from harness.render.renderer import Renderer
-    from harness.scenario import parse_scenario
+    from harness.world.scenario import parse_scenario
     from harness.simulation.simulator import simulate
 
     scen = parse_scenario(SCENE)

@@ -1,4 +1,4 @@
-"""Detections reused across sweep runs (harness/sweep/detection_memo.py): computed once per image history,
+"""Detections reused across sweep runs (harness/run/detection_memo.py): computed once per image history,
 identical outputs with and without reuse, the detector's own time reported."""
 
 from __future__ import annotations
@@ -8,13 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
-import harness.run
-from harness.scenario import parse_scenario
-from harness.sweep.detection_memo import DetectionMemo, ReplayingDetector, detector_identity
-from monorarp.camera import CameraModel
+import harness.run.runner
+from harness.world.scenario import parse_scenario
+from harness.run.detection_memo import DetectionMemo, ReplayingDetector, detector_identity
+from monorarp.core.camera import CameraModel
 from monorarp.detection.centernet import CenterNetDetector
-from monorarp.pipeline import ComponentConfig
-from monorarp.types import Detection, FrameResult
+from monorarp.pipeline.runner import ComponentConfig
+from monorarp.core.types import Detection, FrameResult
 from test_render_cache import SCENARIO as TINY
 
 SCENARIO = {**TINY, "camera": {"width": 320, "height": 192}}    # the net's input size: vehicles big enough to detect
@@ -123,7 +123,7 @@ def test_restore_timings_reports_the_detectors_own_time():
 
 def run_dir(tmp: Path, name: str, tracker: str, memo: DetectionMemo | None) -> Path:
     out = tmp / name
-    harness.run.run_scenario(parse_scenario(SCENARIO), {"detector": {"name": "centernet"}, "tracker": {"name": tracker}},
+    harness.run.runner.run_scenario(parse_scenario(SCENARIO), {"detector": {"name": "centernet"}, "tracker": {"name": tracker}},
                              n_frames=5, out_dir=out, annotate=False, write_frames=False, detections=memo)
     return out
 

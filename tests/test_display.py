@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from monorarp.display import (BANNER_RED, GREEN, ORANGE, RED, YELLOW, draw_frame, layout_frame, place_labels,
+from monorarp.app.display import (BANNER_RED, GREEN, ORANGE, RED, YELLOW, draw_frame, layout_frame, place_labels,
                               rects_overlap, ttc_colour)
-from monorarp.types import FrameResult, ObjectState, RiskEstimate, Track, WarningState
+from monorarp.core.types import FrameResult, ObjectState, RiskEstimate, Track, WarningState
 
 
 def _result(ttc: dict, risk: float, kind: str = "inverse_ttc") -> FrameResult:

@@ -116,7 +116,7 @@ def _options(parser: argparse.ArgumentParser) -> set[str]:
 
 @pytest.fixture(scope="module")
 def cli() -> argparse.ArgumentParser:
-    from monorarp.cli import build_parser
+    from monorarp.app.cli import build_parser
 
     return build_parser()
 
@@ -282,7 +282,7 @@ def test_repository_paths_exist():
 
 def test_every_registered_horizon_is_documented_with_the_option():
     """``monorarp run --help`` lists every registered horizon stage; cli.md's ``--horizon`` row names each."""
-    from monorarp.catalogue import BUILTINS
+    from monorarp.pipeline.catalogue import BUILTINS
 
     row = next(line for line in (ROOT / "docs" / "cli.md").read_text(encoding="utf-8").splitlines()
                if line.startswith("| `--horizon` |"))

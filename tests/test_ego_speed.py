@@ -11,16 +11,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from monorarp.camera import CameraModel
-from monorarp.ego_speed.geometry import EgoSpeedError
+from monorarp.core.camera import CameraModel
+from monorarp.lanes.geometry import EgoSpeedError
 from monorarp.ego_speed.ground_track import GroundTrackEgoSpeed
 from monorarp.ego_speed.lsd_period import LsdPeriodEgoSpeed
-from monorarp.ego_speed.geometry import GroundRows, row_of_distance
-from monorarp.ego_speed.lane_lines import LaneLine, LaneLineFinder
+from monorarp.lanes.geometry import GroundRows, row_of_distance
+from monorarp.lanes.lines import LaneLine, LaneLineFinder
 from monorarp.ego_speed.regression import pooled_slope
 from monorarp.ego_speed.stripes import StripeEdgeFinder
-from monorarp.errors import UserError
-from monorarp.registry import create
+from monorarp.core.errors import UserError
+from monorarp.pipeline.registry import create
 from synthetic_road import RoadSpec, default_camera, render_road, sequence, true_stripe_ends
 
 CAM = default_camera()
@@ -225,8 +225,8 @@ def test_camera_seeing_no_ground_is_rejected():
 
 @pytest.mark.parametrize("name", ["ground_track", "lsd_period"])
 def test_pipeline_names_the_ego_speed_stage_that_cannot_run(name):
-    from monorarp.ego_speed.geometry import EgoSpeedStageError
-    from monorarp.pipeline import Pipeline
+    from monorarp.lanes.geometry import EgoSpeedStageError
+    from monorarp.pipeline.runner import Pipeline
 
     cam = CameraModel.from_fov(640, 360, 70.0, 1.3, np.radians(-21.0))
     cfg = {"ego_speed": {"name": name}}   # the other stages: their defaults
@@ -238,10 +238,10 @@ def test_pipeline_names_the_ego_speed_stage_that_cannot_run(name):
 
 def test_run_command_names_scenario_stage_and_way_out(tmp_path, capsys):
     """A very wide camera sees under 8 rows of road 3..30 m ahead: `monorarp run` says which stage and file."""
-    pytest.importorskip("harness.run")
+    pytest.importorskip("harness.run.runner")
     import yaml
 
-    from monorarp.cli import main
+    from monorarp.app.cli import main
 
     p = tmp_path / "wide.yaml"
     p.write_text(yaml.safe_dump({"name": "wide", "duration_s": 1.0, "camera": {"hfov_deg": 178}}))
@@ -259,7 +259,7 @@ def rendered():
     """Frames rendered by the harness for a few (speed, period) cases: {case: [(t, image, true speed)]}."""
     try:
         from harness.render.renderer import Renderer
-        from harness.scenario import load_scenario_dict, parse_scenario
+        from harness.world.scenario import load_scenario_dict, parse_scenario
         from harness.simulation.simulator import simulate
     except Exception as e:  # noqa: BLE001 - renderer unavailable here (no EGL / not installed)
         pytest.skip(f"harness renderer unavailable: {e}")

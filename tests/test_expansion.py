@@ -1,14 +1,14 @@
-"""The looming cue (monorarp.expansion): rate of change of the log box width against its closed form."""
+"""The looming cue (monorarp.state.expansion): rate of change of the log box width against its closed form."""
 
 import math
 
 import numpy as np
 import pytest
 
-from monorarp.camera import CameraModel
-from monorarp.expansion import ExpansionFilter
-from monorarp.state import StateEstimator
-from monorarp.types import Track
+from monorarp.core.camera import CameraModel
+from monorarp.state.expansion import ExpansionFilter
+from monorarp.state.estimator import StateEstimator
+from monorarp.core.types import Track
 
 FPS = 15.0
 F_PX = 457.0

@@ -25,9 +25,9 @@ import yaml
 from harness.export import geometry as geo
 from harness.export.mot import mot_to_box
 from harness.scoring.evaluate import EvalConfig, counted_mask
-from harness.truth import FrameTruth
-from monorarp.camera import CameraModel
-from monorarp.cli import main
+from harness.world.truth import FrameTruth
+from monorarp.core.camera import CameraModel
+from monorarp.app.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 W, H = 320, 180
@@ -187,7 +187,7 @@ def test_projected_3d_boxes_match_opencv_the_2d_boxes_and_the_true_corners(expor
 
 def test_zero_pitch_boxes_are_exact():
     """With a level camera KITTI's box model holds the true box exactly."""
-    from harness.render.geometry import box_corners_ego
+    from harness.world.geometry import box_corners_ego
 
     cam = CameraModel.from_fov(640, 360, 70.0, height_m=1.3, pitch_rad=0.0)
     yaw = 0.3                                                         # heading, rad, to the right of straight ahead

@@ -30,9 +30,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from harness.run_outputs import OUTPUT_NAMES
+from harness.run.outputs import OUTPUT_NAMES
 from harness.sweep.summary import deterministic_metrics
-from monorarp.cli import main
+from monorarp.app.cli import main
 
 SCENARIO = {
     "name": "tiny", "seed": 0, "duration_s": 1.0, "fps": 15, "road": {"lanes": 3},
@@ -253,7 +253,7 @@ def test_sweep_killed_with_kill_9_then_resumed(case, tmp_path, capsys):
     spec, _, clean = case
     out = tmp_path / "out"
     env = {**os.environ, "MONORARP_FAULT": f"hang:{VICTIM}"}
-    cmd = [sys.executable, "-m", "monorarp.cli", "sweep", str(spec), "--out", str(out), "--cache", "off",
+    cmd = [sys.executable, "-m", "monorarp.app.cli", "sweep", str(spec), "--out", str(out), "--cache", "off",
            "--no-progress", "--workers", "2"]
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     workers: list[int] = []

@@ -1,13 +1,13 @@
-"""The frame feed (harness/frame_feed.py): truth bookkeeping, oracle hand-off, preload vs streaming."""
+"""The frame feed (harness/run/frame_feed.py): truth bookkeeping, oracle hand-off, preload vs streaming."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from harness.truth import FrameTruth
-from harness.frame_feed import FrameFeed, fits_in_memory, run_pipeline
-from monorarp.camera import CameraModel
-from monorarp.types import Frame
+from harness.world.truth import FrameTruth
+from harness.run.frame_feed import FrameFeed, fits_in_memory, run_pipeline
+from monorarp.core.camera import CameraModel
+from monorarp.core.types import Frame
 
 TRUTHS = [FrameTruth.from_json({"frame": i, "t": i / 10, "ego": {"speed": 20.0 + i}, "objects": []}) for i in range(3)]
 

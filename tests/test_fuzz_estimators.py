@@ -3,7 +3,7 @@ no NaN or inf leaves a component, and nothing raises but a clear ``ValueError`` 
 is not a number where one is required.
 
 Components: the state estimator (``geometric``: Kalman CA/CV and the paper's differencing),
-constant-velocity TTC (:func:`monorarp.ttc.time_to_collision`, :func:`~monorarp.ttc.closing_time`),
+constant-velocity TTC (:func:`monorarp.risk.ttc.time_to_collision`, :func:`~monorarp.risk.ttc.closing_time`),
 the paper's 1/TTC risk, the Monte Carlo IDM/MOBIL risk (numpy and numba backends), both
 lane-marking ego-speed estimators on random images, and the forward-collision warning stage.
 
@@ -15,7 +15,7 @@ random stripes.
 Contract checked (per output): every float an estimator returns is finite; optional fields are
 ``None`` or finite; standard deviations are >= 0; TTCs lie in [0, horizon]; probabilities in
 [0, 1]; ego speeds in [0, max_speed]. Non-finite *timestamps* are not valid frame times (a
-:class:`~monorarp.types.Frame` from a video source or the simulation always has a finite
+:class:`~monorarp.core.types.Frame` from a video source or the simulation always has a finite
 one); components given one raise ValueError rather than let NaN through.
 """
 
@@ -31,12 +31,12 @@ import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 
-from monorarp.camera import CameraModel
-from monorarp.risk import TTCRiskEstimator
-from monorarp.state import StateEstimator
-from monorarp.ttc import closing_time, time_to_collision
-from monorarp.types import ObjectState, RiskEstimate, Track, WarningState
-from monorarp.warning import ForwardCollisionWarning
+from monorarp.core.camera import CameraModel
+from monorarp.risk.estimators import TTCRiskEstimator
+from monorarp.state.estimator import StateEstimator
+from monorarp.risk.ttc import closing_time, time_to_collision
+from monorarp.core.types import ObjectState, RiskEstimate, Track, WarningState
+from monorarp.warning.fcw import ForwardCollisionWarning
 
 EXAMPLES = int(os.environ.get("MONORARP_FUZZ_EXAMPLES", "60"))
 FUZZ = settings(max_examples=EXAMPLES, deadline=None, database=None,
@@ -278,7 +278,7 @@ def test_ttc_risk_nan_states(states):
 # --------------------------------------------------------------------------- Monte Carlo risk
 @pytest.fixture(scope="module")
 def mc_estimators():
-    from monorarp.risk_mc.estimator import MonteCarloRisk, resolve_backend
+    from monorarp.risk.monte_carlo.estimator import MonteCarloRisk, resolve_backend
 
     backends = ["numpy"] + (["numba"] if resolve_backend("auto") == "numba" else [])
     return {b: MonteCarloRisk(n_rollouts=16, backend=b, camera=CAM) for b in backends}
@@ -350,7 +350,7 @@ def test_ego_speed_on_random_images(ego_speed_estimators, data, name):
 @pytest.mark.parametrize("image", [np.zeros((90, 161, 3), np.uint8), np.zeros((10, 10, 3), np.uint8),
                                    np.zeros((0, 0, 3), np.uint8), np.zeros((90,), np.uint8)])
 def test_ego_speed_refuses_wrong_image_shapes(ego_speed_estimators, name, image):
-    from monorarp.ego_speed.geometry import EgoSpeedError
+    from monorarp.lanes.geometry import EgoSpeedError
 
     with pytest.raises(EgoSpeedError):
         ego_speed_estimators[name].update(image, 0.0)

@@ -5,7 +5,7 @@ For each reader -- scenario YAML (``render``, ``run``, ``bench trackers``), swee
 ``summary.json`` / ``run.json`` (``check``), FCW protocol (``scorecard --protocol``), ONNX
 model and its sidecar JSON (``run --detector``), video file and input string (``video``,
 ``calibrate-horizon``) -- :mod:`tests.fuzz_docs` generates malformed documents and the
-test calls :func:`monorarp.cli.main` in-process, asserting what a user would see:
+test calls :func:`monorarp.app.cli.main` in-process, asserting what a user would see:
 exit status 2, exactly one line on stderr naming the command and the file, no
 traceback (an uncaught exception fails the test), and nothing written.
 
@@ -41,9 +41,9 @@ from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 
 from fuzz_docs import NOT_JSON, Doc, documents, materialise, plausible_json, scalars, to_json
-from monorarp.cli import main
-from monorarp.errors import UserError
-from monorarp.readers import MAX_JSON_BYTES
+from monorarp.app.cli import main
+from monorarp.core.errors import UserError
+from monorarp.core.readers import MAX_JSON_BYTES
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = int(os.environ.get("MONORARP_FUZZ_EXAMPLES", "60"))
@@ -188,7 +188,7 @@ def names_for(path: Path) -> list[str]:
 @FUZZ
 @given(doc=documents(SCENARIO, "yaml"), command=st.sampled_from(["render", "run", "bench"]))
 def test_scenario_file(base, capsys, doc: Doc, command: str):
-    from harness.scenario import load_scenario
+    from harness.world.scenario import load_scenario
 
     work = _workdir(base)
     path = materialise(doc, work, "scenario.yaml")
@@ -254,7 +254,7 @@ camera_docs = st.one_of(st.tuples(documents(CAMERA, "json", with_fs=False), st.j
 @FUZZ
 @given(doc_suffix=camera_docs, command=st.sampled_from(["video", "calibrate-horizon"]))
 def test_camera_file(base, capsys, doc_suffix: tuple[Doc, str], command: str):
-    from monorarp.camera import CameraModel
+    from monorarp.core.camera import CameraModel
 
     doc, suffix = doc_suffix
     work = _workdir(base)
@@ -294,7 +294,7 @@ def _check_outcome(rc, o, e, work, before, names, malformed: bool) -> None:
 @FUZZ
 @given(doc=documents(BASELINE, "json", limit=MAX_JSON_BYTES), update=st.booleans())
 def test_check_baseline(base, capsys, doc: Doc, update: bool):
-    from harness.check import load_baseline
+    from harness.check.baseline import load_baseline
 
     work = _workdir(base)
     results = _results_dir(work)
@@ -346,7 +346,7 @@ def _summary_fault(draw, value):
 def _check_results(base: Path, capsys, doc: Doc, which: str) -> bool:
     """``check`` of a results directory whose ``which`` (metrics.json, run.json, summary.json) is ``doc``: one
     line and exit 2 if the reader refuses it, a table and exit 0/1 if not. Returns whether it was refused."""
-    from harness.check import load_results
+    from harness.check.baseline import load_results
 
     work = _workdir(base)
     if which == "summary.json":
@@ -556,7 +556,7 @@ def _video_bytes(doc: Doc, clip: bytes) -> Doc:
 @FUZZ
 @given(doc=video_docs(), command=st.sampled_from(["video", "calibrate-horizon"]))
 def test_video_file(base, capsys, doc: Doc, command: str):
-    from monorarp.video.source import VideoSource
+    from monorarp.app.video.source import VideoSource
 
     work = _workdir(base)
     doc = _video_bytes(doc, (base / "clip.mp4").read_bytes())
@@ -616,7 +616,7 @@ def test_video_input_string(base, capsys, spec: str):
 # ------------------------------------------------------------------------------ limits, stated once
 def test_limits_are_documented_values():
     """The readers' limits docs/formats.md states (a change here is a change there)."""
-    from monorarp import readers
+    from monorarp.core import readers
 
     assert readers.MAX_CONFIG_BYTES == 256 << 10 and readers.MAX_JSON_BYTES == 256 << 20
     assert readers.MAX_DEPTH == 64 and readers.MAX_NODES == 100_000 and readers.MAX_INT_BITS == 256
@@ -638,7 +638,7 @@ def test_limits_are_documented_values():
     ("a: &m {x: 1}\nb: {<<: *m, x: 2}\n", None),                        # a merge's keys may be overridden
 ])
 def test_yaml_reader_cases(tmp_path, text, message):
-    from monorarp.readers import parse_yaml
+    from monorarp.core.readers import parse_yaml
 
     if message is None:
         data = parse_yaml(text, "f.yaml")
@@ -651,7 +651,7 @@ def test_yaml_reader_cases(tmp_path, text, message):
 def test_camera_file_with_a_duplicate_key_names_it(tmp_path):
     import re
 
-    from monorarp.camera import CameraError, CameraModel
+    from monorarp.core.camera import CameraError, CameraModel
 
     cam = tmp_path / "cam.yaml"
     cam.write_text(yaml.safe_dump(CAMERA_YAML, sort_keys=False) + "height_m: 9.0\n")
@@ -667,7 +667,7 @@ def test_camera_file_with_a_duplicate_key_names_it(tmp_path):
 ])
 def test_json_reader_refuses_a_duplicate_key(text, message):
     """As YAML: json.loads would keep the last of a key given twice, silently."""
-    from monorarp.readers import parse_json
+    from monorarp.core.readers import parse_json
 
     if message is None:
         assert parse_json(text, "f.json") == json.loads(text)
@@ -677,8 +677,8 @@ def test_json_reader_refuses_a_duplicate_key(text, message):
 
 
 def test_json_files_with_a_duplicate_key_are_refused(tmp_path, capsys):
-    """Camera files and ``check`` baselines (both read by monorarp.readers.parse_json)."""
-    from monorarp.camera import CameraError, CameraModel
+    """Camera files and ``check`` baselines (both read by monorarp.core.readers.parse_json)."""
+    from monorarp.core.camera import CameraError, CameraModel
 
     cam = tmp_path / "camera.json"
     cam.write_text('{"width": 640, "width": 320, "height": 360, "hfov_deg": 70, "height_m": 1.3}')

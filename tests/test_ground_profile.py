@@ -1,4 +1,4 @@
-"""Lane-width ranging (monorarp.ground_profile, the ``lane_width`` horizon stage) against closed forms.
+"""Lane-width ranging (monorarp.horizon.ground_profile, the ``lane_width`` horizon stage) against closed forms.
 
 Synthetic frames: a level camera over a straight road with solid lines at known lateral offsets,
 level up to ``D`` ahead and then climbing or descending at grade ``g`` (a kink). Each image row's road
@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from monorarp.camera import CameraModel
-from monorarp.ground_profile import GroundProfile, contact_ground, ridge_peak, width_distance
-from monorarp.horizon import LaneWidthRanging
-from monorarp.state import StateEstimator
-from monorarp.types import Track
+from monorarp.core.camera import CameraModel
+from monorarp.horizon.ground_profile import GroundProfile, contact_ground, ridge_peak, width_distance
+from monorarp.horizon.stages import LaneWidthRanging
+from monorarp.state.estimator import StateEstimator
+from monorarp.core.types import Track
 
 CAM = CameraModel(width=640, height=360, fx=457.0, fy=457.0, cx=319.5, cy=179.5, height_m=1.3)
 LINES = (-6.0, -2.0, 2.0, 6.0)        # lateral offsets of the painted lines (m)

@@ -10,12 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
-from harness.ground_truth import frame_truth
+from harness.world.ground_truth import frame_truth
 from harness.render.meshes import vehicle_layout
 from harness.render.renderer import Renderer
-from harness.scenario import parse_scenario
-from harness.truth import FrameTruth
-from harness.world import VehicleState, WorldState
+from harness.world.scenario import parse_scenario
+from harness.world.truth import FrameTruth
+from harness.world.state import VehicleState, WorldState
 
 FOCAL = 400.0
 FWD, LAT, CAM_H = 0.5, 0.3, 1.3

@@ -13,15 +13,15 @@ import pytest
 
 from harness.scoring import algo
 from harness.scoring.evaluate import horizon_metrics
-from harness.truth import CameraTruth, EgoTruth, FrameTruth
-from monorarp.camera import CameraModel
-from monorarp.cli import main
-from monorarp.horizon import CalibratedHorizon, OnlineHorizon, pitch_std_px, row_std_px
-from monorarp.pipeline import Pipeline, PipelineConfig, run_sync, run_threaded
-from monorarp.risk import ttc_std
-from monorarp.state import StateEstimator
-from monorarp.state_geometry import box_distance
-from monorarp.types import Frame, FrameResult, HorizonReading, ObjectState, RiskEstimate, Track
+from harness.world.truth import CameraTruth, EgoTruth, FrameTruth
+from monorarp.core.camera import CameraModel
+from monorarp.app.cli import main
+from monorarp.horizon.stages import CalibratedHorizon, OnlineHorizon, pitch_std_px, row_std_px
+from monorarp.pipeline.runner import Pipeline, PipelineConfig, run_sync, run_threaded
+from monorarp.risk.estimators import ttc_std
+from monorarp.state.estimator import StateEstimator
+from monorarp.state.geometry import box_distance
+from monorarp.core.types import Frame, FrameResult, HorizonReading, ObjectState, RiskEstimate, Track
 
 NOMINAL = CameraModel.from_fov(640, 360, 70.0, 1.3, math.radians(2.0))
 
@@ -30,7 +30,7 @@ NOMINAL = CameraModel.from_fov(640, 360, 70.0, 1.3, math.radians(2.0))
 def test_row_std_matches_monte_carlo_scatter():
     """Segments through a known point with Gaussian endpoint noise: the fit's stated row sigma
     agrees with the scatter of the fitted rows over many draws (within 35 %)."""
-    from monorarp.video.horizon import vanishing_point
+    from monorarp.horizon.vanishing import vanishing_point
 
     rng = np.random.default_rng(7)
     u0, v0 = 320.0, 160.0
@@ -63,8 +63,8 @@ def test_pitch_std_px_is_the_row_shift_of_that_pitch():
 # ------------------------------------------------------------------ online horizon on rendered frames
 @pytest.fixture(scope="module")
 def vibrating_frames():
-    from harness.frame_feed import rendered_frames
-    from harness.scenario import parse_scenario
+    from harness.run.frame_feed import rendered_frames
+    from harness.world.scenario import parse_scenario
 
     s = parse_scenario({"name": "v", "seed": 4, "duration_s": 2.0, "road": {"lanes": 3},
                         "traffic": {"vehicles_count": 4}, "ego": {"lane": 1, "speed_mps": 25.0},

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from harness.scoring.hota import ALPHAS, HotaAccumulator, HotaResult, combine, hota
-from monorarp.boxes import iou_matrix
+from monorarp.core.boxes import iou_matrix
 
 FIXTURE = Path(__file__).parent / "data" / "hota_trackeval.json"
 TOL = 1e-6
@@ -150,10 +150,10 @@ def test_mot_scorer_hota_skips_ignored_objects_and_the_tracks_on_them():
 def test_evaluate_reports_hota_and_bench_pools_it_like_trackeval(ref):
     from harness.bench.trackers import pooled_tracking
     from harness.scoring.evaluate import EvalConfig, evaluate
-    from monorarp.types import FrameResult, RiskEstimate, Track
+    from monorarp.core.types import FrameResult, RiskEstimate, Track
 
     box = [100.0, 100.0, 140.0, 130.0]
-    from harness.truth import FrameTruth
+    from harness.world.truth import FrameTruth
 
     truths = [FrameTruth.from_json({"frame": k, "t": k / 10, "ego": {"speed": 20.0},
                                     "objects": [{"id": 1, "box": box, "visibility": 1.0, "d_long": 15.0, "d_lat": 0.0,

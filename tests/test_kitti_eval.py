@@ -17,8 +17,8 @@ from harness.export.kitti import calib_text
 from harness.kitti_eval import geometry as geo
 from harness.kitti_eval.reader import KittiInputError, open_dataset, parse_calib, parse_object_labels
 from harness.scoring import kitti_ap as kap
-from monorarp import cli
-from monorarp.camera import CameraError, CameraModel
+from monorarp.app import cli
+from monorarp.core.camera import CameraError, CameraModel
 
 ROOT = Path(__file__).resolve().parents[1]
 FX, CX, CY = 700.0, 199.5, 74.5          # hand-written camera: 400 x 150 px

@@ -11,7 +11,7 @@ import monorarp
 for m in pkgutil.walk_packages(monorarp.__path__, "monorarp."):
     if m.name != "monorarp.__main__":
         importlib.import_module(m.name)
-from monorarp.registry import available, KINDS
+from monorarp.pipeline.registry import available, KINDS
 for kind in KINDS:
     available(kind)
 bad = sorted(n for n in sys.modules if n.split(".")[0] in ("harness", "highway_env", "pyrender", "gymnasium"))

@@ -7,9 +7,9 @@ import threading
 import numpy as np
 import pytest
 
-from harness.oracle import OracleConfigError, OracleDetector
-from harness.truth import EgoTruth, FrameTruth, ObjectTruth
-from monorarp.camera import CameraModel
+from harness.run.oracle import OracleConfigError, OracleDetector
+from harness.world.truth import EgoTruth, FrameTruth, ObjectTruth
+from monorarp.core.camera import CameraModel
 
 W, H = 320, 180
 

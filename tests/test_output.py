@@ -1,4 +1,4 @@
-"""monorarp.io: strict JSON, atomic files and atomic output directories."""
+"""monorarp.app.io: strict JSON, atomic files and atomic output directories."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from monorarp.io import JsonlWriter, OutputError, atomic_output_dir, dumps, write_json_atomic
+from monorarp.app.io import JsonlWriter, OutputError, atomic_output_dir, dumps, write_json_atomic
 
 
 def _strict_loads(text: str):
@@ -181,7 +181,7 @@ def test_sigterm_leaves_no_temporary_output(tmp_path):
 
     root = Path(__file__).resolve().parents[1]
     out = tmp_path / "r"
-    proc = subprocess.Popen([sys.executable, "-m", "monorarp.cli", "run", str(root / "scenarios" / "highway_cruise.yaml"),
+    proc = subprocess.Popen([sys.executable, "-m", "monorarp.app.cli", "run", str(root / "scenarios" / "highway_cruise.yaml"),
                              "--out", str(out)], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, env={**os.environ, "PYOPENGL_PLATFORM": "egl"})
     deadline = time.monotonic() + 120
@@ -198,7 +198,7 @@ def test_interrupts_deferred_holds_ctrl_c_until_the_block_ends():
     import os
     import signal
 
-    from monorarp.io import interrupts_deferred
+    from monorarp.app.io import interrupts_deferred
 
     done = []
     with pytest.raises(KeyboardInterrupt):

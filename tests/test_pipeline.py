@@ -7,13 +7,13 @@ import threading
 import numpy as np
 import pytest
 
-from monorarp.camera import CameraModel
-from monorarp.pipeline import Pipeline, PipelineConfig, run_sync, run_threaded
-from monorarp import registry
-from monorarp.risk import TTCRiskEstimator
-from monorarp.state import StateEstimator
+from monorarp.core.camera import CameraModel
+from monorarp.pipeline.runner import Pipeline, PipelineConfig, run_sync, run_threaded
+from monorarp.pipeline import registry
+from monorarp.risk.estimators import TTCRiskEstimator
+from monorarp.state.estimator import StateEstimator
 from monorarp.tracking.particle import ParticleTracker
-from monorarp.types import Detection, Frame, RiskEstimate
+from monorarp.core.types import Detection, Frame, RiskEstimate
 
 CAM = CameraModel.from_fov(320, 180, 60.0, 1.3)
 
@@ -140,7 +140,7 @@ class RecordingRisk:
         self.got: list[tuple[float, float | None]] = []
 
     def assess(self, states, t, ego_speed=None):
-        from monorarp.types import RiskEstimate
+        from monorarp.core.types import RiskEstimate
 
         self.got.append((t, ego_speed))
         return RiskEstimate(risk=0.0 if ego_speed is None else ego_speed, kind="probability")
@@ -167,7 +167,7 @@ def test_risk_stage_gets_the_same_frames_ego_speed_in_both_runners():
 
 
 def test_monte_carlo_threaded_equals_sync_with_ego_speed():
-    from monorarp.risk_mc.estimator import MonteCarloRisk
+    from monorarp.risk.monte_carlo.estimator import MonteCarloRisk
 
     def build():
         p = make()

@@ -14,7 +14,7 @@ import yaml
 pytest.importorskip("ray", reason="Ray is not installed (optional extra: pip install '.[ray]')")
 
 from harness.sweep.summary import deterministic_metrics  # noqa: E402
-from monorarp.cli import main  # noqa: E402
+from monorarp.app.cli import main  # noqa: E402
 
 SCENARIO = {
     "name": "tiny", "seed": 0, "duration_s": 1.0, "fps": 15, "road": {"lanes": 3},

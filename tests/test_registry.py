@@ -8,9 +8,9 @@ import sys
 
 import pytest
 
-from monorarp import registry
-from monorarp.camera import CameraModel
-from monorarp.catalogue import BUILTINS
+from monorarp.pipeline import registry
+from monorarp.core.camera import CameraModel
+from monorarp.pipeline.catalogue import BUILTINS
 
 CAM = CameraModel.from_fov(320, 180, 60.0, 1.3)
 ENTRIES = [(kind, name, target) for kind, names in BUILTINS.items() for name, target in names.items()]
@@ -21,16 +21,16 @@ def _run(code: str) -> str:
 
 
 def test_importing_the_registry_imports_no_component():
-    loaded = _run("import sys, monorarp.registry as r\n"
+    loaded = _run("import sys, monorarp.pipeline.registry as r\n"
                   "r.available('tracker')\n"
                   "print(','.join(sorted(m for m in sys.modules if m.startswith(('monorarp', 'harness')))))")
-    assert loaded.split(",") == ["monorarp", "monorarp.catalogue", "monorarp.errors", "monorarp.registry"]
+    assert loaded.split(",") == ["monorarp", "monorarp.pipeline.catalogue", "monorarp.core.errors", "monorarp.pipeline.registry"]
 
 
 def test_no_component_module_imports_the_registry():
-    modules = sorted({target.partition(":")[0] for _, _, target in ENTRIES} | {"harness.oracle"})
+    modules = sorted({target.partition(":")[0] for _, _, target in ENTRIES} | {"harness.run.oracle"})
     loaded = _run(f"import importlib, sys\nfor m in {modules!r}: importlib.import_module(m)\n"
-                  "print('monorarp.registry' in sys.modules)")
+                  "print('monorarp.pipeline.registry' in sys.modules)")
     assert loaded == "False"
 
 
@@ -64,7 +64,7 @@ def test_each_builtin_is_declared_once():
 
 
 def test_oracle_is_a_plugin_entry_point():
-    from harness.oracle import OracleDetector
+    from harness.run.oracle import OracleDetector
 
     assert "oracle" in registry.available("detector")
     assert registry.get_factory("detector", "oracle") is OracleDetector

@@ -9,12 +9,12 @@ import cv2
 import numpy as np
 import pytest
 
-from harness.render.geometry import vehicle_pose_world
+from harness.world.geometry import vehicle_pose_world
 from harness.render.meshes import vehicle_trimesh
 from harness.render.renderer import Renderer
 from harness.render.renderer import SKY_RGB
-from harness.scenario import parse_scenario
-from harness.world import VehicleState, WorldState
+from harness.world.scenario import parse_scenario
+from harness.world.state import VehicleState, WorldState
 
 LANE_W = 3.7
 

@@ -1,4 +1,4 @@
-"""The frame cache (harness/frame_cache.py): render once per scenario instance, identical results, checked
+"""The frame cache (harness/run/frame_cache.py): render once per scenario instance, identical results, checked
 entries, atomic writes, LRU size limit; the sweep's render-once ordering (RenderOnceQueue)."""
 
 from __future__ import annotations
@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import yaml
 
-import harness.frame_feed
-from harness.frame_cache import FRAMES, MANIFEST, TRUTH, FrameCache
-from harness.scenario import parse_scenario
+import harness.run.frame_feed
+from harness.run.frame_cache import FRAMES, MANIFEST, TRUTH, FrameCache
+from harness.world.scenario import parse_scenario
 from harness.sweep.executors import RenderOnceQueue
 from harness.sweep.expand import load_and_expand
-from monorarp.cli import main
+from monorarp.app.cli import main
 
 SCENARIO = {
     "name": "tiny", "seed": 0, "duration_s": 1.0, "fps": 15, "road": {"lanes": 3},
@@ -35,15 +35,15 @@ WALL_CLOCK = ("runtime_ms", "fps", "wall_time_s")
 
 @pytest.fixture()
 def renders(monkeypatch):
-    """Counts calls of harness.frame_feed.rendered_frames (the only place frames are made)."""
+    """Counts calls of harness.run.frame_feed.rendered_frames (the only place frames are made)."""
     calls: list[int] = []
-    real = harness.frame_feed.rendered_frames
+    real = harness.run.frame_feed.rendered_frames
 
     def counting(scenario, n_frames=None):
         calls.append(scenario.seed)
         return real(scenario, n_frames)
 
-    monkeypatch.setattr(harness.frame_feed, "rendered_frames", counting)
+    monkeypatch.setattr(harness.run.frame_feed, "rendered_frames", counting)
     return calls
 
 

@@ -11,8 +11,8 @@ import pytest
 
 from harness.render import passes
 from harness.render.renderer import Renderer, _seg_colour
-from harness.scenario import parse_scenario
-from harness.world import VehicleState, WorldState
+from harness.world.scenario import parse_scenario
+from harness.world.state import VehicleState, WorldState
 
 LANE_W = 3.7
 EGO = VehicleState(0, 100.0, LANE_W, 0.0, 25.0, 25.0, 0.0, 1, 5.0, 2.0)

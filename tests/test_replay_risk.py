@@ -13,9 +13,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 
 from replay_risk import frame_states, replay  # noqa: E402
 
-from monorarp.camera import CameraModel  # noqa: E402
-from monorarp.risk import ManoeuvreTTCRisk  # noqa: E402
-from monorarp.types import ObjectState  # noqa: E402
+from monorarp.core.camera import CameraModel  # noqa: E402
+from monorarp.risk.estimators import ManoeuvreTTCRisk  # noqa: E402
+from monorarp.core.types import ObjectState  # noqa: E402
 
 CAM = CameraModel.from_fov(640, 360, 60, 1.3, forward_offset_m=0.5)
 OBJ_COLS = "frame,t,gt_id,track_id,d_long_gt,d_y_est,d_lat_gt,d_x_est,v_long_gt,v_y_est,v_lat_gt,v_x_est,expansion_rate,expansion_rate_std"

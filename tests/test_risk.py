@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from monorarp.camera import CameraModel
-from monorarp.registry import create
-from monorarp.risk import ManoeuvreTTCRisk, TTCRiskEstimator
-from monorarp.types import ObjectState, RiskEstimate
+from monorarp.core.camera import CameraModel
+from monorarp.pipeline.registry import create
+from monorarp.risk.estimators import ManoeuvreTTCRisk, TTCRiskEstimator
+from monorarp.core.types import ObjectState, RiskEstimate
 
 
 def simulate_ttc(s: ObjectState, W=1.8, L=4.5, ego_w=1.8, ego_l=4.5, fwd=0.0, lat=0.0, horizon=10.0, dt=1e-4):
@@ -220,8 +220,8 @@ def test_manoeuvre_ttc_rejects_bad_settings(kw):
 def test_a_run_with_the_manoeuvre_risk_is_also_scored_with_the_papers_1_over_ttc():
     from types import SimpleNamespace
 
-    from harness.run_scoring import baseline_ttc_risk, manoeuvre_ttc_risk
-    from monorarp.types import FrameResult
+    from harness.run.scoring import baseline_ttc_risk, manoeuvre_ttc_risk
+    from monorarp.core.types import FrameResult
 
     cam = CameraModel.from_fov(640, 360, 60, 1.3)
     states = {1: ObjectState(1, 0.0, 20.0, 0.0, -5.0), 2: ObjectState(2, 3.5, 8.0, 0.0, -1.0)}

@@ -21,12 +21,12 @@ import pytest
 from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.behavior import IDMVehicle
 
-from monorarp.risk_mc.estimator import MonteCarloRisk
-from monorarp.risk_mc.drivers import DriverDistribution, DriverParams, Truncated
-from monorarp.risk_mc.idm import idm_acceleration
-from monorarp.risk_mc.rollout import RolloutConfig, Scene, mobil_sides, simulate
-from monorarp.risk_mc.rollout_numba import NUMBA_AVAILABLE, simulate_numba
-from monorarp.types import ObjectState
+from monorarp.risk.monte_carlo.estimator import MonteCarloRisk
+from monorarp.risk.monte_carlo.drivers import DriverDistribution, DriverParams, Truncated
+from monorarp.risk.monte_carlo.idm import idm_acceleration
+from monorarp.risk.monte_carlo.rollout import RolloutConfig, Scene, mobil_sides, simulate
+from monorarp.risk.monte_carlo.rollout_numba import NUMBA_AVAILABLE, simulate_numba
+from monorarp.core.types import ObjectState
 
 LANE_W = 4.0  # highway-env's lane width
 
@@ -313,10 +313,10 @@ def test_ego_speed_sources_and_lane_geometry():
 def test_registered_as_risk_monte_carlo():
     from importlib.metadata import entry_points
 
-    from monorarp.registry import get_factory
+    from monorarp.pipeline.registry import get_factory
 
     assert get_factory("risk", "monte_carlo") is MonteCarloRisk
-    assert "monte_carlo" not in {ep.name for ep in entry_points(group="monorarp.risk")}   # declared once
+    assert "monte_carlo" not in {ep.name for ep in entry_points(group="monorarp.risk.estimators")}   # declared once
 
 
 # ----------------------------------------------------------------------------- rollout internals
@@ -331,7 +331,7 @@ def _brute_neighbours(x, occ, i, n):
 
 
 def test_lane_neighbours_match_brute_force():
-    from monorarp.risk_mc.rollout import PHANTOM_X, _Order
+    from monorarp.risk.monte_carlo.rollout import PHANTOM_X, _Order
 
     rng = np.random.default_rng(11)
     s, lane_min, lane_max = 40, -1, 2
@@ -353,7 +353,7 @@ def test_lane_neighbours_match_brute_force():
 
 
 def test_rollout_idm_kernel_equals_reference_idm():
-    from monorarp.risk_mc.rollout import _idm, _Zeros
+    from monorarp.risk.monte_carlo.rollout import _idm, _Zeros
 
     rng = np.random.default_rng(5)
     m = 4000
@@ -367,7 +367,7 @@ def test_rollout_idm_kernel_equals_reference_idm():
 
 
 def test_rollouts_do_not_depend_on_chunking(monkeypatch):
-    import monorarp.risk_mc.rollout as rollout
+    import monorarp.risk.monte_carlo.rollout as rollout
 
     est = MonteCarloRisk(n_rollouts=120, seed=2, dtype="float64", backend="numpy")   # chunking is numpy's
     scene = {i: _state(i, float(np.array([-3.7, 0.0, 3.7])[i % 3]), 8.0 + 9.0 * i, 0.1 * (i % 2), -4.0 + i)
@@ -383,7 +383,7 @@ def test_rollouts_do_not_depend_on_chunking(monkeypatch):
 
 
 def test_more_tracks_than_the_rollout_limit():
-    from monorarp.risk_mc.rollout import MAX_VEHICLES
+    from monorarp.risk.monte_carlo.rollout import MAX_VEHICLES
 
     n = MAX_VEHICLES + 9
     states = {i: _state(i, float([-3.7, 0.0, 3.7][i % 3]), 20.0 + 12.0 * i) for i in range(1, n + 1)}
@@ -397,12 +397,12 @@ def test_more_tracks_than_the_rollout_limit():
 # ----------------------------------------------------------------------------- backends
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_contact_test_matches_closed_form_ttc(backend):
-    """The per-step conflict test (with the numba pre-filter) against :func:`monorarp.ttc.time_to_collision`.
+    """The per-step conflict test (with the numba pre-filter) against :func:`monorarp.risk.ttc.time_to_collision`.
 
     dt = 1.5 s > near_miss = 1 s: a conflict seen at t = 0 is recorded as its contact time (< 1 s), one
     seen only at the next step as >= 1.5 s, so the first step's verdict is read off ``conflict_t``.
     """
-    from monorarp.ttc import time_to_collision
+    from monorarp.risk.ttc import time_to_collision
 
     rng = np.random.default_rng(3)
     s, W, dt = 6000, 3.7, 1.5
@@ -490,9 +490,9 @@ def test_numba_records_the_same_trajectories():
 
 
 def test_backend_option(monkeypatch):
-    import monorarp.risk_mc.rollout_numba as rn
-    from monorarp.errors import UserError
-    from monorarp.risk_mc.estimator import MonteCarloConfigError
+    import monorarp.risk.monte_carlo.rollout_numba as rn
+    from monorarp.core.errors import UserError
+    from monorarp.risk.monte_carlo.estimator import MonteCarloConfigError
 
     assert MonteCarloRisk(n_rollouts=8, backend="numpy").backend == "numpy"
     assert MonteCarloRisk(n_rollouts=8).backend == ("numba" if NUMBA_AVAILABLE else "numpy")
@@ -594,8 +594,8 @@ def test_numba_and_numpy_backends_agree_with_constant_speed_ego():
 
 
 def test_ego_model_option_is_validated():
-    from monorarp.errors import UserError
-    from monorarp.risk_mc.estimator import MonteCarloConfigError
+    from monorarp.core.errors import UserError
+    from monorarp.risk.monte_carlo.estimator import MonteCarloConfigError
 
     assert MonteCarloRisk(n_rollouts=8, backend="numpy").ego_model == "idm"
     with pytest.raises(MonteCarloConfigError, match="ego_model.*'constant_velocity'"):

@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 import scipy.special
 
-from harness.ground_truth import frame_truth
+from harness.world.ground_truth import frame_truth
 from harness.render.meshes import vehicle_trimesh
 from harness.render.renderer import Renderer
-from harness.road_plan import RoadPlan, path_length
-from harness.road_profile import RoadProfile
-from harness.scenario import ScenarioError, parse_scenario
+from harness.world.road_plan import RoadPlan, path_length
+from harness.world.road_profile import RoadProfile
+from harness.world.scenario import ScenarioError, parse_scenario
 from harness.simulation.placement import EGO_START_X_M, road_plan
-from harness.world import VehicleState, WorldState
-from monorarp.cli import main
+from harness.world.state import VehicleState, WorldState
+from monorarp.app.cli import main
 from silhouette import assert_silhouette, rot_ego_to_cv
 
 
@@ -251,7 +251,7 @@ def test_rendered_vehicle_on_a_curve_where_cv2_projects_it(ego_offset, car_u, la
 
 
 def test_straight_plan_renders_byte_identical_frames():
-    from harness.frame_feed import rendered_frames
+    from harness.run.frame_feed import rendered_frames
 
     plain = list(rendered_frames(_scenario([]), n_frames=2))
     empty = list(rendered_frames(_scenario([{"start_m": 40.0, "radius_m": 500, "direction": "left"}]), n_frames=2))
@@ -268,7 +268,7 @@ def test_straight_plan_renders_byte_identical_frames():
 def test_shipped_curve_scenario_and_curves_sweep():
     from pathlib import Path
 
-    from harness.scenario import load_scenario
+    from harness.world.scenario import load_scenario
     from harness.sweep.axes import _log_scale
     from harness.sweep.expand import load_and_expand
 

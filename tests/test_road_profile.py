@@ -11,15 +11,15 @@ import cv2
 import numpy as np
 import pytest
 
-from harness.ground_truth import frame_truth
-from harness.render.geometry import vehicle_corners_ego
+from harness.world.ground_truth import frame_truth
+from harness.world.geometry import vehicle_corners_ego
 from harness.render.meshes import vehicle_height, vehicle_trimesh
 from harness.render.renderer import Renderer
-from harness.road_profile import RoadProfile
-from harness.scenario import ScenarioError, parse_scenario
+from harness.world.road_profile import RoadProfile
+from harness.world.scenario import ScenarioError, parse_scenario
 from harness.simulation.placement import EGO_START_X_M, road_profile
-from harness.world import VehicleState, WorldState
-from monorarp.cli import main
+from harness.world.state import VehicleState, WorldState
+from monorarp.app.cli import main
 from silhouette import assert_silhouette
 
 
@@ -184,7 +184,7 @@ def test_rendered_vehicle_on_a_grade_where_cv2_projects_it(ego_x_offset):
 
 
 def test_level_profile_renders_byte_identical_frames():
-    from harness.frame_feed import rendered_frames
+    from harness.run.frame_feed import rendered_frames
 
     plain = list(rendered_frames(_scenario([]), n_frames=3))
     level = list(rendered_frames(_scenario([{"start_m": 40.0, "grade": 0.0, "transition_m": 30.0}]), n_frames=3))
@@ -197,8 +197,8 @@ def test_level_profile_renders_byte_identical_frames():
 
 # ------------------------------------------------------------------ the state estimator's grade term
 def test_grade_gain_is_the_tilted_plane_derivative_and_widens_d_y_std():
-    from monorarp.camera import CameraModel
-    from monorarp.state import StateEstimator
+    from monorarp.core.camera import CameraModel
+    from monorarp.state.estimator import StateEstimator
 
     cam = CameraModel.from_fov(640, 360, 70.0, 1.3, math.radians(2.0))
     est = StateEstimator(cam, grade_std=0.02)
@@ -218,7 +218,7 @@ def test_grade_gain_is_the_tilted_plane_derivative_and_widens_d_y_std():
 
 
 def test_shipped_hill_scenario_and_grade_sweep():
-    from harness.scenario import load_scenario
+    from harness.world.scenario import load_scenario
     from harness.sweep.expand import load_and_expand
 
     root = Path(__file__).resolve().parents[1] / "scenarios" / "conditions"

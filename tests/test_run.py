@@ -18,15 +18,15 @@ import numpy as np
 import pytest
 
 from harness.render.meshes import vehicle_layout
-from harness.run import run_scenario
-from harness.run_outputs import OUTPUT_NAMES
-from harness.scenario import parse_scenario
+from harness.run.runner import run_scenario
+from harness.run.outputs import OUTPUT_NAMES
+from harness.world.scenario import parse_scenario
 from harness.scoring.records import read_csv
-from monorarp.camera import CameraModel
-from monorarp.cli import main
-from monorarp import registry
-from monorarp.state import StateEstimator
-from monorarp.video.writer import read_video
+from monorarp.core.camera import CameraModel
+from monorarp.app.cli import main
+from monorarp.pipeline import registry
+from monorarp.state.estimator import StateEstimator
+from monorarp.app.video.writer import read_video
 
 N_FRAMES = 12
 SCENARIO = {

@@ -1,4 +1,4 @@
-"""The run directory (harness/run_outputs.py): all or nothing, nothing at all without a directory."""
+"""The run directory (harness/run/outputs.py): all or nothing, nothing at all without a directory."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import json
 
 import pytest
 
-from harness.truth import FrameTruth
-from harness.run_outputs import CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME, OUTPUT_NAMES, RunOutputs
-from monorarp.camera import CameraModel
+from harness.world.truth import FrameTruth
+from harness.run.outputs import CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME, OUTPUT_NAMES, RunOutputs
+from monorarp.core.camera import CameraModel
 
 CAMERA = CameraModel.from_fov(64, 36, 70.0, 1.3, 0.0)
 TRUTH = FrameTruth.from_json({"frame": 0, "t": 0.0, "ego": {"speed": 25.0}, "objects": []})

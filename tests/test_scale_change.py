@@ -1,4 +1,4 @@
-"""Patch registration (monorarp.scale_change) against images warped by a known scale with cv2.warpAffine."""
+"""Patch registration (monorarp.state.scale_change) against images warped by a known scale with cv2.warpAffine."""
 
 import math
 
@@ -6,12 +6,12 @@ import cv2
 import numpy as np
 import pytest
 
-from monorarp.camera import CameraModel
-from monorarp.scale_change import (LoomingRegistration, RateWindow, gradient_stack, lateral_displacement, region,
+from monorarp.core.camera import CameraModel
+from monorarp.state.scale_change import (LoomingRegistration, RateWindow, gradient_stack, lateral_displacement, region,
                                    register_scale)
-from monorarp.state import StateEstimator
-from monorarp.state_geometry import fragments
-from monorarp.types import Track
+from monorarp.state.estimator import StateEstimator
+from monorarp.state.geometry import fragments
+from monorarp.core.types import Track
 
 CENTRE = (320.0, 200.0)
 
@@ -184,7 +184,7 @@ def test_a_box_cut_by_the_image_bottom_is_not_registered():
 
 
 def test_the_3x3_solve_matches_numpy():
-    from monorarp.scale_change import _solve3
+    from monorarp.state.scale_change import _solve3
     rng = np.random.default_rng(3)
     for _ in range(200):
         a = rng.normal(size=(3, 3))

@@ -5,9 +5,9 @@ with a noisy box bottom edge against the truth."""
 import numpy as np
 import pytest
 
-from monorarp.camera import CameraModel
-from monorarp.state import StateEstimator
-from monorarp.types import Track
+from monorarp.core.camera import CameraModel
+from monorarp.state.estimator import StateEstimator
+from monorarp.core.types import Track
 from tests.test_scale_change import scaled, texture
 
 DT = 1.0 / 15.0

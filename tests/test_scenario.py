@@ -6,8 +6,8 @@ import textwrap
 
 import pytest
 
-from harness.scenario import ScenarioError, load_scenario
-from monorarp.cli import main
+from harness.world.scenario import ScenarioError, load_scenario
+from monorarp.app.cli import main
 
 # (id, YAML text, substrings the one-line message must contain)
 BAD = [
@@ -140,7 +140,7 @@ def test_frames_must_be_positive(tmp_path, capsys, frames):
 
 def test_valid_minimal_scenario_defaults():
     """The defaults documented in docs/scenarios.md hold (a guard against silent schema drift)."""
-    from harness.scenario import parse_scenario
+    from harness.world.scenario import parse_scenario
 
     s = parse_scenario({"name": "x"})
     assert (s.seed, s.duration_s, s.fps, s.n_frames) == (0, 10.0, 15.0, 150)
@@ -175,7 +175,7 @@ def test_documented_defaults_table():
     import re
     from pathlib import Path
 
-    from harness.scenario import parse_scenario
+    from harness.world.scenario import parse_scenario
 
     s = parse_scenario({"name": "x", "vehicles": [{"name": "a", "distance_m": 10}]})
     sections = {"Top level": s, "`road`": s.road, "`traffic`": s.traffic, "`ego`": s.ego,
@@ -229,7 +229,7 @@ def test_every_shipped_yaml_parses_and_every_shipped_scenario_loads():
 
     from harness.scorecard.protocols import load_protocol
     from harness.sweep.spec import load_sweep_spec
-    from monorarp.readers import read_yaml
+    from monorarp.core.readers import read_yaml
 
     root = Path(__file__).resolve().parents[1] / "scenarios"
     kinds = {"scenario": 0, "sweep": 0, "protocol": 0}
@@ -255,8 +255,8 @@ def test_plain_scenario_names_are_accepted(tmp_path, name):
 
 
 def test_merged_keys_may_be_overridden_but_not_given_twice():
-    from monorarp.errors import UserError
-    from monorarp.readers import parse_yaml
+    from monorarp.core.errors import UserError
+    from monorarp.core.readers import parse_yaml
 
     assert parse_yaml("a: &b {x: 1, y: 2}\nc: {<<: *b, x: 3}\n", "m.yaml")["c"] == {"x": 3, "y": 2}
     with pytest.raises(UserError, match=r"^m\.yaml: invalid YAML at line 4: duplicate key 'x' \(first at line 3\)$"):

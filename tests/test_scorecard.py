@@ -13,8 +13,8 @@ from harness.scorecard import score
 from harness.scorecard.protocols import ProtocolError, contact_time, expand_protocol, load_protocol
 from harness.scoring import algo
 from harness.scoring.warnings import warning_metrics
-from harness.truth import FrameTruth
-from monorarp.types import FrameResult, ObjectState, RiskEstimate, Track, WarningState
+from harness.world.truth import FrameTruth
+from monorarp.core.types import FrameResult, ObjectState, RiskEstimate, Track, WarningState
 
 FCW = Path(__file__).resolve().parents[1] / "scenarios" / "fcw"
 
@@ -278,7 +278,7 @@ def test_the_scorecard_says_how_many_false_alarms_were_for_a_braking_vehicle():
     (["--protocol", str(FCW / "ci.yaml"), "--weak-detections", "0.2", "--tracker", "sort"], "--weak-detections"),
 ])
 def test_cli_bad_options_one_line_nothing_written(tmp_path, capsys, argv, needle):
-    from monorarp.cli import main
+    from monorarp.app.cli import main
 
     out = tmp_path / "out"
     assert main(["scorecard", *argv, "--out", str(out)]) == 2

@@ -15,11 +15,11 @@ from harness.scoring.evaluate import EvalConfig, evaluate, write_metrics
 from harness.scoring.match import match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import read_csv, write_csv
-from harness.truth import EgoTruth, FrameTruth, ObjectTruth
-from monorarp.boxes import iou_matrix
-from monorarp.camera import CameraModel
-from monorarp.io import to_jsonable
-from monorarp.types import Detection, FrameResult, ObjectState, RiskEstimate, Track
+from harness.world.truth import EgoTruth, FrameTruth, ObjectTruth
+from monorarp.core.boxes import iou_matrix
+from monorarp.core.camera import CameraModel
+from monorarp.app.io import to_jsonable
+from monorarp.core.types import Detection, FrameResult, ObjectState, RiskEstimate, Track
 
 
 # ------------------------------------------------------------------ matching

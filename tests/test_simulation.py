@@ -12,9 +12,9 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.objects import Obstacle
 
-from harness.scenario import ScenarioError, load_scenario, parse_scenario
+from harness.world.scenario import ScenarioError, load_scenario, parse_scenario
 from harness.simulation.simulator import Simulation, simulate
-from monorarp.ttc import ego_extent, time_to_collision
+from monorarp.risk.ttc import ego_extent, time_to_collision
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 

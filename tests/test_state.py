@@ -8,11 +8,11 @@ import cv2
 import numpy as np
 import pytest
 
-from monorarp.camera import CameraModel
-from monorarp.registry import create
-from monorarp.state import StateEstimator
-from monorarp.state_geometry import eq3_distance, eq4_lateral, lateral_from_terms, lateral_terms, measure_boxes
-from monorarp.types import Track
+from monorarp.core.camera import CameraModel
+from monorarp.pipeline.registry import create
+from monorarp.state.estimator import StateEstimator
+from monorarp.state.geometry import eq3_distance, eq4_lateral, lateral_from_terms, lateral_terms, measure_boxes
+from monorarp.core.types import Track
 
 FPS = 30.0
 
@@ -314,7 +314,7 @@ def test_bottom_cut_track_keeps_its_filtered_distance(level_cam, velocity):
 
 def test_vehicle_leaving_the_view_gives_no_lateral_velocity_or_false_warning(pitched_cam):
     """Adjacent-lane vehicle (5 m x 2 m) at a constant 4 m offset, the ego overtaking it at 3 m/s."""
-    from monorarp.risk import TTCRiskEstimator
+    from monorarp.risk.estimators import TTCRiskEstimator
 
     def run(border_tol_px):
         est = StateEstimator(pitched_cam, border_tol_px=border_tol_px)
@@ -418,7 +418,7 @@ def test_bias_state_makes_the_velocity_sigma_honest_under_correlated_edge_errors
 
 
 def test_kf_update_with_a_measurement_row_matches_the_matrix_formula():
-    from monorarp.kalman import kf_update
+    from monorarp.core.kalman import kf_update
     rng = np.random.default_rng(3)
     A = rng.normal(size=(4, 4))
     P = A @ A.T + np.eye(4)

@@ -1,6 +1,6 @@
 """`monorarp sweep`: spec validation, expansion ids, failure isolation, resume, summary, report, determinism.
 
-Most tests replace :func:`harness.run.run_scenario` by a fast fake (the serial
+Most tests replace :func:`harness.run.runner.run_scenario` by a fast fake (the serial
 executor runs in this process); the report and determinism tests make real,
 tiny runs (320x180, a few frames).
 """
@@ -16,12 +16,12 @@ from pathlib import Path
 import pytest
 import yaml
 
-import harness.run
-from harness.scenario import parse_scenario
+import harness.run.runner
+from harness.world.scenario import parse_scenario
 from harness.sweep.expand import format_value, load_and_expand, run_id
 from harness.sweep.spec import check_override_path
 from harness.sweep.summary import deterministic_metrics
-from monorarp.cli import main
+from monorarp.app.cli import main
 
 SCENARIO = {
     "name": "tiny", "seed": 0, "duration_s": 1.0, "fps": 15, "road": {"lanes": 3},
@@ -90,7 +90,7 @@ def run_cli(*args: str) -> int:
 ])
 def test_bad_spec_exits_2_before_any_run(tmp_path, monkeypatch, capsys, change, needle):
     fake = FakeRun()
-    monkeypatch.setattr(harness.run, "run_scenario", fake)
+    monkeypatch.setattr(harness.run.runner, "run_scenario", fake)
     spec = write_case(tmp_path, spec_dict(**change))
     out = tmp_path / "out"
     assert run_cli(spec, "--out", out) == 2
@@ -102,7 +102,7 @@ def test_bad_spec_exits_2_before_any_run(tmp_path, monkeypatch, capsys, change, 
 
 def test_duplicate_key_in_spec_exits_2_before_any_run(tmp_path, monkeypatch, capsys):
     fake = FakeRun()
-    monkeypatch.setattr(harness.run, "run_scenario", fake)
+    monkeypatch.setattr(harness.run.runner, "run_scenario", fake)
     spec = write_case(tmp_path, spec_dict())
     spec.write_text(spec.read_text() + "frames: 6\n")   # spec_dict() already has frames: 4
     line = len(spec.read_text().splitlines())
@@ -123,7 +123,7 @@ def test_override_paths_follow_the_schema():
 
 
 def test_out_dir_with_other_content_is_refused(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(harness.run, "run_scenario", FakeRun())
+    monkeypatch.setattr(harness.run.runner, "run_scenario", FakeRun())
     spec = write_case(tmp_path, spec_dict())
     (tmp_path / "out").mkdir()
     (tmp_path / "out" / "mine.txt").write_text("x")
@@ -176,7 +176,7 @@ def test_shipped_sweep_specs_are_valid():
 # ------------------------------------------------------- failures, resume, CSV
 def test_failing_runs_are_recorded_and_others_finish(tmp_path, monkeypatch, capsys):
     fake = FakeRun(fail_when=lambda seed, pitch, tracker: seed == 2 and pitch == 1.0)
-    monkeypatch.setattr(harness.run, "run_scenario", fake)
+    monkeypatch.setattr(harness.run.runner, "run_scenario", fake)
     # ego.lane 5 does not exist on the 3-lane road: caught when that combination is validated
     spec = write_case(tmp_path, spec_dict(grid={"camera.pitch_deg": [1.0, 2.5], "ego.lane": [1, 5]}))
     out = tmp_path / "out"
@@ -208,12 +208,12 @@ def test_failing_runs_are_recorded_and_others_finish(tmp_path, monkeypatch, caps
 
 def test_resume_skips_finished_runs(tmp_path, monkeypatch):
     first = FakeRun(fail_when=lambda seed, pitch, tracker: seed == 1 and pitch == 2.5)
-    monkeypatch.setattr(harness.run, "run_scenario", first)
+    monkeypatch.setattr(harness.run.runner, "run_scenario", first)
     spec = write_case(tmp_path, spec_dict())
     out = tmp_path / "out"
     assert run_cli(spec, "--out", out) == 1 and len(first.calls) == 4
     second = FakeRun()
-    monkeypatch.setattr(harness.run, "run_scenario", second)
+    monkeypatch.setattr(harness.run.runner, "run_scenario", second)
     assert run_cli(spec, "--out", out, "--resume") == 0
     assert second.calls == [(1, 2.5, "particle")]                  # only the failed run again
     assert run_cli(spec, "--out", out, "--resume") == 0 and len(second.calls) == 1
@@ -224,7 +224,7 @@ def test_resume_skips_finished_runs(tmp_path, monkeypatch):
 
 
 def test_resume_refuses_runs_the_spec_does_not_have(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(harness.run, "run_scenario", FakeRun())
+    monkeypatch.setattr(harness.run.runner, "run_scenario", FakeRun())
     out = tmp_path / "out"
     assert run_cli(write_case(tmp_path, spec_dict()), "--out", out) == 0
     before = sorted(p.name for p in (out / "runs").iterdir())
@@ -236,7 +236,7 @@ def test_resume_refuses_runs_the_spec_does_not_have(tmp_path, monkeypatch, capsy
 
 
 def test_spec_metric_in_no_run_is_reported(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(harness.run, "run_scenario", FakeRun())
+    monkeypatch.setattr(harness.run.runner, "run_scenario", FakeRun())
     spec = write_case(tmp_path, spec_dict(metrics=["distance.rel_err_median", "no.such.metric"]))
     assert run_cli(spec, "--out", tmp_path / "out") == 0
     err = capsys.readouterr().err

@@ -7,13 +7,13 @@ import cv2
 import numpy as np
 import pytest
 
-from monorarp.registry import create
+from monorarp.pipeline.registry import create
 from monorarp.tracking.bytetrack import ByteTracker
 from monorarp.tracking.opencv import OpenCVMultiTracker
 from monorarp.tracking.sort import SortTracker
 from monorarp.tracking.kalman_box import BoxKalman, boxes_to_z, x_to_boxes
 from monorarp.tracking.opencv import box_to_rect, inside_fraction, rect_to_box
-from monorarp.types import Detection
+from monorarp.core.types import Detection
 
 from tracking_helpers import DT, box_at, iou_ref, run  # noqa: F401
 

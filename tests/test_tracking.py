@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from monorarp.registry import create
+from monorarp.pipeline.registry import create
 from monorarp.tracking.particle import ParticleTracker
-from monorarp.boxes import iou_matrix
+from monorarp.core.boxes import iou_matrix
 from monorarp.tracking.association import assign, associate_iou
 from monorarp.tracking.particle import systematic_resample
-from monorarp.types import Detection
+from monorarp.core.types import Detection
 
 from tracking_helpers import DT, box_at, iou_ref, run  # noqa: F401
 

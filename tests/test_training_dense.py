@@ -7,7 +7,7 @@ import copy
 import numpy as np
 import pytest
 
-from harness.scenario import parse_scenario
+from harness.world.scenario import parse_scenario
 from monorarp.detection import load_detector
 from monorarp.detection.centernet import DENSE_MODEL, DenseCenterNetDetector
 from rendered_frame import first_frame
@@ -58,7 +58,7 @@ def test_dense_model_finds_a_car_partly_hidden_behind_the_next_lanes_car(near_m,
     """A car two lanes left, 25-43 m ahead, 45-75 % hidden by a car in the lane between.
     Measured 2026-11-28: the dense model scores these 0.49-0.62 (threshold 0.422); the shipped model
     0.23-0.51 (threshold 0.431), so it misses the (20, 14) and (25, 18) ones."""
-    from monorarp.boxes import iou
+    from monorarp.core.boxes import iou
 
     assert DENSE_MODEL.stat().st_size <= 10_000_000
     scen, image, truth = first_frame({

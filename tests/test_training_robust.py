@@ -128,7 +128,7 @@ def test_onnx_weights_read_back_compute_the_same_outputs():
 
 
 def test_robust_model_is_small_registered_and_finds_a_rendered_vehicle():
-    from monorarp.boxes import iou
+    from monorarp.core.boxes import iou
 
     assert ROBUST_MODEL.stat().st_size <= 10_000_000
     scen, image, truth = first_frame({

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from harness.truth import CameraTruth, EgoTruth, FrameTruth, ObjectTruth
+from harness.world.truth import CameraTruth, EgoTruth, FrameTruth, ObjectTruth
 
 #: One ``ground_truth.jsonl`` line as the renderer writes it (moving camera: with the ``camera`` block).
 LINE = ('{"frame":3,"t":0.2,"ego":{"speed":25.0,"x":105.0,"y":4.0,"heading":0.0,"lane":1,"crashed":false},'

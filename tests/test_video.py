@@ -1,4 +1,4 @@
-"""monorarp.video.writer: H.264 mp4 writing, read back with OpenCV's own decoder."""
+"""monorarp.app.video.writer: H.264 mp4 writing, read back with OpenCV's own decoder."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from monorarp.video.writer import VideoWriter, read_video
+from monorarp.app.video.writer import VideoWriter, read_video
 
 
 def _frames(w: int, h: int, n: int) -> list[np.ndarray]:

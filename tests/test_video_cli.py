@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 import yaml
 
-from monorarp.camera import CameraError, CameraModel
-from monorarp.cli import main
-from monorarp.video.horizon import estimate_horizon, vanishing_point
-from monorarp.video.run import _opencv_gui
-from monorarp.video.source import VideoSource, VideoSourceError
+from monorarp.core.camera import CameraError, CameraModel
+from monorarp.app.cli import main
+from monorarp.horizon.vanishing import estimate_horizon, vanishing_point
+from monorarp.app.video.run import _opencv_gui
+from monorarp.app.video.source import VideoSource, VideoSourceError
 
 ROOT = Path(__file__).resolve().parents[1]
 W, H, N_FRAMES, FPS = 320, 180, 20, 15.0

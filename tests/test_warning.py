@@ -1,11 +1,11 @@
-"""The forward-collision warning stage (monorarp.warning): in-path test, TTC, episodes."""
+"""The forward-collision warning stage (monorarp.warning.fcw): in-path test, TTC, episodes."""
 
 import math
 
 import pytest
 
-from monorarp.types import ObjectState
-from monorarp.warning import ForwardCollisionWarning, significant_lateral_velocity
+from monorarp.core.types import ObjectState
+from monorarp.warning.fcw import ForwardCollisionWarning, significant_lateral_velocity
 
 
 def fcw(**kw):
@@ -67,8 +67,8 @@ def test_bad_settings_are_refused(kw):
 
 
 def test_registered_and_in_the_default_pipeline():
-    from monorarp import registry
-    from monorarp.pipeline import PipelineConfig
+    from monorarp.pipeline import registry
+    from monorarp.pipeline.runner import PipelineConfig
 
     assert "fcw" in registry.available("warning")
     assert PipelineConfig(detector={"name": "centernet"}).warning.name == "fcw"
@@ -89,7 +89,7 @@ def _simulated_closing_time(gap: float, v: float, a: float, dt: float = 1e-4, ho
 @pytest.mark.parametrize("gap,v,a", [(20.0, -10.0, 0.0), (15.0, 0.0, -5.0), (30.0, -5.0, -2.94),
                                      (20.0, -10.0, 3.0), (20.0, -4.0, 3.0), (10.0, 2.0, -1.0), (10.0, 2.0, 0.0)])
 def test_closing_time_matches_integrated_kinematics(gap, v, a):
-    from monorarp.ttc import closing_time
+    from monorarp.risk.ttc import closing_time
 
     got = float(closing_time(gap, v, a))
     want = _simulated_closing_time(gap, v, a)
@@ -103,7 +103,7 @@ def test_acceleration_brings_a_braking_lead_sooner_only_when_significant():
     # Lead 15 m ahead (rear face; camera at the ego's front), same speed, braking relative 5 m/s^2.
     braking = ObjectState(1, 0.0, 15.0, 0.0, 0.0, v_x_std=0.1, v_y_std=0.1, a_y=-5.0, a_y_std=0.5)
     ttc = fcw(accel_sigmas=2.0).threats({1: braking})[1]
-    from monorarp.ttc import closing_time
+    from monorarp.risk.ttc import closing_time
     assert ttc == pytest.approx(float(closing_time(15.0 - 1.75, 0.0, -5.0 + 2 * 0.5)))   # a shrunk by 2 sigma
     assert fcw(accel_sigmas=None).threats({1: braking}) == {}                              # constant velocity: never
     noisy = ObjectState(1, 0.0, 15.0, 0.0, 0.0, v_x_std=0.1, v_y_std=0.1, a_y=-5.0, a_y_std=3.0)

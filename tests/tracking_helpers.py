@@ -3,7 +3,7 @@
 import motmetrics as mm
 import numpy as np
 
-from monorarp.types import Detection
+from monorarp.core.types import Detection
 
 DT = 1 / 30
 

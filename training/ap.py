@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monorarp.boxes import iou_matrix
+from monorarp.core.boxes import iou_matrix
 
 
 @dataclass

@@ -4,7 +4,7 @@ A dataset directory holds
 
 * ``images.npy`` -- (N, H, W, 3) uint8 BGR, already letterboxed to the net's input size;
 * ``boxes.npy`` -- (M, 7) float: image index, x1, y1, x2, y2 (*source*-image pixels,
-  continuous convention of :mod:`monorarp.types`), ignore flag (1 = too occluded/small:
+  continuous convention of :mod:`monorarp.core.types`), ignore flag (1 = too occluded/small:
   neither required nor penalised);
 * ``boxes_fine.npy`` (optional, ``generate_data --truth-supersample``) -- (M, 4) the same boxes
   from an id mask rendered at N x the resolution (continuous edges to 1/N px; NaN: none);

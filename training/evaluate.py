@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from monorarp.detection.centernet import CenterNetDetector
-from monorarp.state_geometry import BORDER_TOL_PX
+from monorarp.state.geometry import BORDER_TOL_PX
 from training.ap import average_precision, match
 from training.data import Dataset
 
@@ -43,7 +43,7 @@ def predict(det: CenterNetDetector, ds: Dataset) -> tuple[list[np.ndarray], list
 
 def predict_source(det: CenterNetDetector, ds: Dataset) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Boxes and scores on the full-resolution frames, each with its own camera (fovea placement)."""
-    from monorarp.camera import CameraModel
+    from monorarp.core.camera import CameraModel
 
     src = np.load(Path(ds.meta["dir"]) / "source.npy", mmap_mode="r")
     boxes, scores = [], []

@@ -41,7 +41,7 @@ import numpy as np  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
 from harness.render.renderer import Renderer  # noqa: E402
-from harness.scenario import ScenarioError, parse_scenario  # noqa: E402
+from harness.world.scenario import ScenarioError, parse_scenario  # noqa: E402
 from harness.simulation.simulator import simulate  # noqa: E402
 from monorarp.detection.fovea import Fovea  # noqa: E402
 from monorarp.detection.letterbox import Letterbox  # noqa: E402
@@ -96,7 +96,7 @@ def scenario_dict(rng: np.random.Generator, index: int, seed: int, resolution: t
 
 
 def random_conditions(rng: np.random.Generator) -> dict:
-    """A random ``conditions:`` block (see :class:`harness.scenario.Conditions`)."""
+    """A random ``conditions:`` block (see :class:`harness.world.scenario.Conditions`)."""
     tod = str(rng.choice(["day", "low_sun", "dusk", "night"], p=[0.35, 0.2, 0.25, 0.2]))
     out: dict = {"time_of_day": tod}
     if rng.random() < 0.5:

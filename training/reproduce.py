@@ -25,7 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from monorarp.camera import CameraModel
+from monorarp.core.camera import CameraModel
 from training import dense, evaluate, export, generate_data, robust, train
 from training.data import Dataset
 

@@ -7,11 +7,11 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from monorarp.errors import UserError
+from monorarp.core.errors import UserError
 
 
 def run_script(main: Callable[[], object]) -> None:
-    """Call ``main()``; a :class:`~monorarp.errors.UserError` it raises is printed as
+    """Call ``main()``; a :class:`~monorarp.core.errors.UserError` it raises is printed as
     ``<script>: error: <message>`` on stderr and the process exits with status 2."""
     try:
         main()

@@ -2,8 +2,8 @@
 
 Every tracker sees identical frames and identical detections:
 
-1. each scenario is simulated and rendered once (:func:`harness.frame_feed.rendered_frames`), or read
-   from the frame cache (:mod:`harness.frame_cache`, shared with ``monorarp sweep``) when an
+1. each scenario is simulated and rendered once (:func:`harness.run.frame_feed.rendered_frames`), or read
+   from the frame cache (:mod:`harness.run.frame_cache`, shared with ``monorarp sweep``) when an
    earlier benchmark or sweep rendered the same instance; its frames (made read-only) and
    ground truths are kept in memory;
 2. the detector runs once per frame; its detections and its time are cached;
@@ -29,19 +29,19 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_TRACKERS, default_scenarios
-from harness.scenario import Scenario, frames_to_simulate, load_scenario
+from harness.world.scenario import Scenario, frames_to_simulate, load_scenario
 from harness.scoring.bootstrap import SequenceCounts, tracker_intervals
 from harness.scoring.evaluate import EvalConfig, evaluate, state_metrics
 from harness.scoring.records import ObjectRecord
-from harness.truth import FrameTruth
-from monorarp.camera import CameraModel
-from monorarp.errors import UserError
-from monorarp.pipeline import ComponentConfig, PipelineConfig, check_weak_detections, tracker_input
-from monorarp.registry import build, get_factory, uses
-from monorarp.types import Detection, Frame, FrameResult, strong
+from harness.world.truth import FrameTruth
+from monorarp.core.camera import CameraModel
+from monorarp.core.errors import UserError
+from monorarp.pipeline.runner import ComponentConfig, PipelineConfig, check_weak_detections, tracker_input
+from monorarp.pipeline.registry import build, get_factory, uses
+from monorarp.core.types import Detection, Frame, FrameResult, strong
 
 if TYPE_CHECKING:
-    from harness.frame_cache import FrameCache
+    from harness.run.frame_cache import FrameCache
 
 JSON_NAME, MD_NAME = "trackers.json", "trackers.md"
 OUTPUT_NAMES = (JSON_NAME, MD_NAME)
@@ -83,7 +83,7 @@ def cache_sequence(scenario: Scenario, detector: Any, n_frames: int, name: str |
                    log: Callable[[str], None] | None = None, cache: FrameCache | None = None) -> CachedSequence:
     """Render ``n_frames`` of ``scenario`` (or read them from ``cache``) and run ``detector`` once on each
     frame (timed)."""
-    from harness.frame_feed import rendered_frames
+    from harness.run.frame_feed import rendered_frames
 
     if hasattr(detector, "reset"):
         detector.reset()
@@ -213,7 +213,7 @@ class BenchConfig:
     #: the detector, state and risk stages every tracker shares (its tracker stage is replaced by each of ``trackers``)
     pipeline: PipelineConfig = field(default_factory=PipelineConfig)
     eval: EvalConfig = EvalConfig()
-    #: frame cache (harness.frame_cache), or a callable giving it once the inputs are checked; None: render
+    #: frame cache (harness.run.frame_cache), or a callable giving it once the inputs are checked; None: render
     cache: FrameCache | Callable[[], FrameCache | None] | None = None
 
 
@@ -389,7 +389,7 @@ def run_bench(config: BenchConfig = BenchConfig(), out_dir: str | Path | None = 
     check_trackers(config.trackers)              # the cheapest refusal first
     if out_dir is None:
         return bench_trackers(config, log)
-    from monorarp.io import atomic_output_dir, to_jsonable, write_json_atomic
+    from monorarp.app.io import atomic_output_dir, to_jsonable, write_json_atomic
 
     with atomic_output_dir(out_dir, owned_names=OUTPUT_NAMES) as tmp:
         result = bench_trackers(config, log)

@@ -10,8 +10,8 @@ from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
 from harness.commands.detector_args import add_oracle_arguments, pipeline_config
-from monorarp.config_options import add_pipeline_options
-from monorarp.errors import UserError
+from monorarp.app.options import add_pipeline_options
+from monorarp.core.errors import UserError
 
 
 def _split(values: list[str] | None) -> list[str]:
@@ -82,7 +82,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run_trackers(args: argparse.Namespace) -> int:
     from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_TRACKERS, default_scenarios
     from harness.bench.trackers import BenchConfig, run_bench, stderr_log, table_iii
-    from harness.frame_cache import check_max_gb
+    from harness.run.frame_cache import check_max_gb
 
     trackers = _split(args.trackers) if args.trackers is not None else list(DEFAULT_TRACKERS)
     scenarios = _split(args.scenarios) if args.scenarios is not None else default_scenarios()

@@ -6,11 +6,11 @@ import argparse
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from harness.frame_cache import FrameCache
+    from harness.run.frame_cache import FrameCache
 
 
 def add_cache_arguments(p: argparse.ArgumentParser) -> None:
-    from harness.frame_cache import DEFAULT_MAX_GB, ENV_DIR
+    from harness.run.frame_cache import DEFAULT_MAX_GB, ENV_DIR
 
     p.add_argument("--cache", default=None, metavar="DIR|off",
                    help="frame cache: each scenario instance is rendered once and its frames, ground truth and camera "
@@ -22,6 +22,6 @@ def add_cache_arguments(p: argparse.ArgumentParser) -> None:
 
 def cache_from_args(args: argparse.Namespace) -> FrameCache | None:
     """The cache the options describe (created and checked now), or None for ``--cache off``."""
-    from harness.frame_cache import open_cache
+    from harness.run.frame_cache import open_cache
 
     return open_cache(args.cache, args.cache_max_gb)

@@ -2,7 +2,7 @@
 
 Exit status: 0 every check holds, 1 regression (or a baseline run missing or
 failed in the results), 2 bad input (unreadable/malformed results or baseline).
-The baseline format and default tolerances are described in :mod:`harness.check`.
+The baseline format and default tolerances are described in :mod:`harness.check.baseline`.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from harness.check import (CheckInputError, checked_exists, compare, format_table, load_baseline, load_results,
+    from harness.check.baseline import (CheckInputError, checked_exists, compare, format_table, load_baseline, load_results,
                                updated_baseline, write_baseline)
 
     results = load_results(args.results)

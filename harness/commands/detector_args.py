@@ -1,12 +1,12 @@
 """The oracle detector's noise options (``monorarp run`` and ``monorarp bench``), added to the shared
-pipeline options of :mod:`monorarp.config_options`."""
+pipeline options of :mod:`monorarp.app.options`."""
 
 from __future__ import annotations
 
 import argparse
 
-from monorarp.errors import UserError
-from monorarp.pipeline import ComponentConfig, PipelineConfig
+from monorarp.core.errors import UserError
+from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
 
 
 def add_oracle_arguments(p: argparse.ArgumentParser) -> None:
@@ -33,7 +33,7 @@ def with_oracle_noise(cfg: PipelineConfig, args: argparse.Namespace) -> Pipeline
 
 
 def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None) -> PipelineConfig:
-    """:func:`monorarp.config_options.pipeline_config` with the oracle detector known and its noise options."""
-    from monorarp.config_options import pipeline_config as shared
+    """:func:`monorarp.app.options.pipeline_config` with the oracle detector known and its noise options."""
+    from monorarp.app.options import pipeline_config as shared
 
     return with_oracle_noise(shared(args, base), args)

@@ -13,9 +13,9 @@ import argparse
 import math
 from pathlib import Path
 
-from monorarp.config_options import add_pipeline_options, default_name, pipeline_config
-from monorarp.errors import UserError
-from monorarp.pipeline import PipelineConfig
+from monorarp.app.options import add_pipeline_options, default_name, pipeline_config
+from monorarp.core.errors import UserError
+from monorarp.pipeline.runner import PipelineConfig
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -68,7 +68,7 @@ def run_kitti(args: argparse.Namespace) -> int:
     from harness.kitti_eval.evaluate import LABELS_DETECTOR, KittiEvalOptions, dataset_summary, evaluate_kitti
     from harness.kitti_eval.reader import open_dataset
     from monorarp.detection import is_model_path
-    from monorarp.registry import get_factory
+    from monorarp.pipeline.registry import get_factory
 
     _positive("--camera-height", args.camera_height)
     _positive("--fps", args.fps)

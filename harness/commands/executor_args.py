@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from monorarp.errors import UserError
+from monorarp.core.errors import UserError
 
 
 def add_executor_arguments(p: argparse.ArgumentParser) -> None:

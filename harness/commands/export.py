@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from monorarp.errors import UserError
-from monorarp.pipeline import PipelineConfig
+from monorarp.core.errors import UserError
+from monorarp.pipeline.runner import PipelineConfig
 
 DEFAULT_MOT_DETECTOR = PipelineConfig().detector.name
 
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     detector = None
     if det_name is not None and det_name.lower() != "none":
         from monorarp.detection import build_detector
-        from monorarp.pipeline import ComponentConfig
+        from monorarp.pipeline.runner import ComponentConfig
 
         detector = build_detector(ComponentConfig(name=det_name), source.camera)
     stats = export(source, args.format, args.out, detector=detector,

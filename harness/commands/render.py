@@ -4,8 +4,8 @@ Simulates the scenario, renders every frame and writes, atomically (the
 directory appears complete or not at all):
 
 * ``DIR/frames.mp4`` — H.264 video, one frame per simulation step at the scenario's fps;
-* ``DIR/camera.json`` — :meth:`monorarp.camera.CameraModel.to_dict` of the rendering camera;
-* ``DIR/ground_truth.jsonl`` — one :func:`harness.ground_truth.frame_truth` record per frame.
+* ``DIR/camera.json`` — :meth:`monorarp.core.camera.CameraModel.to_dict` of the rendering camera;
+* ``DIR/ground_truth.jsonl`` — one :func:`harness.world.ground_truth.frame_truth` record per frame.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from monorarp.errors import UserError
+from monorarp.core.errors import UserError
 
 VIDEO_NAME = "frames.mp4"
 CAMERA_NAME = "camera.json"
@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from harness.scenario import ScenarioError, frames_to_simulate, load_scenario
+    from harness.world.scenario import ScenarioError, frames_to_simulate, load_scenario
 
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")
@@ -70,11 +70,11 @@ def render_scenario(scenario, out: str | Path, n_frames: int, *, crf: int = 18,
     """
     from tqdm import tqdm
 
-    from harness.ground_truth import frame_truth
+    from harness.world.ground_truth import frame_truth
     from harness.render.renderer import Renderer
     from harness.simulation.simulator import simulate
-    from monorarp.io import JsonlWriter, atomic_output_dir, write_json_atomic
-    from monorarp.video.writer import VideoWriter
+    from monorarp.app.io import JsonlWriter, atomic_output_dir, write_json_atomic
+    from monorarp.app.video.writer import VideoWriter
 
     if progress is None:
         progress = sys.stderr.isatty()

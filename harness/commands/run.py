@@ -2,7 +2,7 @@
 
 Writes ``DIR/metrics.json``, ``DIR/per_object.csv``, ``DIR/per_frame.csv``, ``DIR/annotated.mp4`` and the
 rendered ``frames.mp4``/``camera.json``/``ground_truth.jsonl`` (see
-:mod:`harness.run`); the directory appears complete or not at all.
+:mod:`harness.run.runner`); the directory appears complete or not at all.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import argparse
 from pathlib import Path
 
 from harness.commands.detector_args import add_oracle_arguments, pipeline_config
-from monorarp.config_options import WARNING_THRESHOLD_S, add_pipeline_options
-from monorarp.errors import UserError
+from monorarp.app.options import WARNING_THRESHOLD_S, add_pipeline_options
+from monorarp.core.errors import UserError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -45,11 +45,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from harness.run import run_scenario
-    from harness.scenario import ScenarioError, frames_to_simulate, load_scenario
+    from harness.run.runner import run_scenario
+    from harness.world.scenario import ScenarioError, frames_to_simulate, load_scenario
     from harness.scoring.evaluate import EvalConfig
     from harness.scoring.tables import summary_table
-    from monorarp.ego_speed.geometry import EgoSpeedStageError
+    from monorarp.lanes.geometry import EgoSpeedStageError
 
     if args.frames is not None and args.frames <= 0:
         raise UserError(f"--frames: must be a positive integer, got {args.frames}")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from monorarp.errors import UserError
+from monorarp.core.errors import UserError
 
 SUITE_CHOICES = ("nhtsa", "ncap", "cut_in", "nominal", "risk", "all")
 MAX_TRIALS = 1000          # --trials: a protocol file's own limit
@@ -17,7 +17,7 @@ MAX_TRIALS = 1000          # --trials: a protocol file's own limit
 
 def register(sub: argparse._SubParsersAction) -> None:
     from harness.commands.executor_args import add_executor_arguments
-    from monorarp.config_options import add_pipeline_options
+    from monorarp.app.options import add_pipeline_options
 
     p = sub.add_parser(
         "scorecard", help="run the FCW test protocols (NHTSA, Euro NCAP, cut-ins), false alarms, risk family",

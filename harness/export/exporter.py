@@ -1,7 +1,7 @@
 """Orchestration of ``monorarp export``: source -> (detector) -> format writer, atomically.
 
 The output directory is built in a temporary directory beside ``out`` and moved into
-place only when every frame has been written (:func:`monorarp.io.atomic_output_dir`):
+place only when every frame has been written (:func:`monorarp.app.io.atomic_output_dir`):
 an error or Ctrl-C leaves ``out`` as it was. Beside the format's own files the export
 writes ``export.json``: format, source, frames, sequence name, fps, the camera
 (``camera.json``'s layout) and the detector of ``det/det.txt``.
@@ -35,7 +35,7 @@ def export(source: ExportSource, fmt: str, out: str | Path, detector: Any = None
     """
     from tqdm import tqdm
 
-    from monorarp.io import atomic_output_dir, write_json_atomic
+    from monorarp.app.io import atomic_output_dir, write_json_atomic
 
     if fmt not in FORMATS:
         raise ValueError(f"unknown format {fmt!r}")

@@ -1,6 +1,6 @@
 """Pure geometry of the dataset exports (no files here): KITTI boxes, calibration, truncation.
 
-Frames are those of :mod:`monorarp.camera` (camera frame: OpenCV, x right, y down, z forward; ego
+Frames are those of :mod:`monorarp.core.camera` (camera frame: OpenCV, x right, y down, z forward; ego
 frame: x right, y ahead, z up) and of the ground truth's ``corners_cam``. KITTI's camera frame is
 the pitched camera's own; the pitch and mounting go into ``Tr_velo_to_cam`` / ``Tr_imu_to_velo``,
 and the rebuilt KITTI box misses only the pitch. In full: docs/formats.md (the pitched camera).
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from monorarp.camera import CameraModel
+from monorarp.core.camera import CameraModel
 
 #: Nearest depth (m) a box edge is kept at before it is projected (clipped there).
 Z_NEAR_M = 0.1

@@ -16,8 +16,8 @@ import cv2
 import numpy as np
 
 from harness.export import geometry as geo
-from harness.truth import FrameTruth, ObjectTruth
-from monorarp.camera import CameraModel
+from harness.world.truth import FrameTruth, ObjectTruth
+from monorarp.core.camera import CameraModel
 
 SEQUENCE = "0000"
 SEQMAP_NAME = "evaluate_tracking.seqmap.training"

@@ -30,8 +30,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from harness.truth import FrameTruth, ObjectTruth
-from monorarp.camera import CameraModel
+from harness.world.truth import FrameTruth, ObjectTruth
+from monorarp.core.camera import CameraModel
 
 CAR_CLASS = 3
 JPEG_QUALITY = 95

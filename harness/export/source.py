@@ -1,6 +1,6 @@
 """Where an export's frames and ground truth come from: a scenario file or a run directory.
 
-* ``SCENARIO.yaml`` — simulated and rendered now (:func:`harness.frame_feed.rendered_frames`,
+* ``SCENARIO.yaml`` — simulated and rendered now (:func:`harness.run.frame_feed.rendered_frames`,
   the frames ``monorarp run`` scores), so the images are the renderer's exact pixels.
 * ``RUN_DIR`` — a directory written by ``monorarp run`` or ``monorarp render``: its
   ``camera.json`` and ``ground_truth.jsonl``, and its frames decoded from ``frames.mp4``
@@ -19,11 +19,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from harness.run_outputs import CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME, VIDEO_NAME
-from harness.truth import FrameTruth
-from monorarp.camera import CameraModel
-from monorarp.errors import UserError
-from monorarp.types import Frame
+from harness.run.outputs import CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME, VIDEO_NAME
+from harness.world.truth import FrameTruth
+from monorarp.core.camera import CameraModel
+from monorarp.core.errors import UserError
+from monorarp.core.types import Frame
 
 #: Ground-truth object fields the exports read.
 OBJECT_FIELDS = ("id", "box", "visibility", "d_long", "corners_cam", "length", "width")
@@ -62,8 +62,8 @@ def open_source(path: str | Path, n_frames: int | None = None) -> ExportSource:
 
 
 def _scenario(path: Path, n_frames: int | None) -> ExportSource:
-    from harness.frame_feed import rendered_frames
-    from harness.scenario import ScenarioError, frames_to_simulate, load_scenario
+    from harness.run.frame_feed import rendered_frames
+    from harness.world.scenario import ScenarioError, frames_to_simulate, load_scenario
 
     scenario = load_scenario(path)
     n = frames_to_simulate(scenario, n_frames, path, "export")
@@ -138,7 +138,7 @@ def _run_name(run_dir: Path) -> str:
 
 
 def _run_dir(run_dir: Path, n_frames: int | None) -> ExportSource:
-    from monorarp.video.writer import read_video
+    from monorarp.app.video.writer import read_video
 
     missing = [n for n in (CAMERA_NAME, GROUND_TRUTH_NAME) if not (run_dir / n).is_file()]
     if missing:

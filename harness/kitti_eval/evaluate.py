@@ -5,7 +5,7 @@ Frames: an object dataset's images are independent (each is its own one-frame se
 stage is reset before it, and each detection is its own track, so no tracker runs); a tracking
 sequence's frames run in order through the tracker, at ``t = frame / fps`` (KITTI: 10 Hz).
 
-Truth per frame (:class:`KittiFrameTruth`, the :class:`~harness.truth.FrameTruth` that
+Truth per frame (:class:`KittiFrameTruth`, the :class:`~harness.world.truth.FrameTruth` that
 :func:`harness.scoring.evaluate.evaluate` reads, plus the label's KITTI fields): each label's box,
 ``d_long``/``d_lat`` from its location, size and yaw (:mod:`harness.kitti_eval.geometry`); on
 tracking sequences ``v_long``/``v_lat`` = finite differences of those over the frame times of the
@@ -43,12 +43,12 @@ from harness.kitti_eval.reader import Dataset, KittiInputError, Sample
 from harness.scoring import kitti_ap
 from harness.scoring.evaluate import EvalConfig, evaluate
 from harness.scoring.records import COLUMNS, _cell
-from harness.truth import EgoTruth, FrameTruth, ObjectTruth
-from monorarp import registry
-from monorarp.camera import CameraError, CameraModel
-from monorarp.pipeline import ComponentConfig, Pipeline, PipelineConfig
-from monorarp.readers import MAX_CONFIG_BYTES, read_json
-from monorarp.types import Detection, Frame, FrameResult, RiskEstimate, Track, WarningState, strong
+from harness.world.truth import EgoTruth, FrameTruth, ObjectTruth
+from monorarp.pipeline import registry
+from monorarp.core.camera import CameraError, CameraModel
+from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig
+from monorarp.core.readers import MAX_CONFIG_BYTES, read_json
+from monorarp.core.types import Detection, Frame, FrameResult, RiskEstimate, Track, WarningState, strong
 
 METRICS_NAME = "metrics.json"
 PER_OBJECT_NAME = "per_object.csv"
@@ -78,7 +78,7 @@ class QueuedDetector:
     (the detector runs on the decoding threads, in parallel with the rest of the pipeline) or, for
     ``--detector labels``, the frame's vehicle label boxes (``Car``, ``Van``, ``Truck``), score 1, labelled
     with their type in lower case (an oracle with KITTI's label precision). The queue holds the weak
-    detections too (:attr:`~monorarp.types.Detection.weak`), for a tracker that takes them."""
+    detections too (:attr:`~monorarp.core.types.Detection.weak`), for a tracker that takes them."""
 
     uses_weak_detections = True
 
@@ -443,7 +443,7 @@ def write_rows(rows: list[dict], path: Path) -> None:
 def evaluate_kitti(ds: Dataset, opts: KittiEvalOptions, out: str | Path) -> dict:
     """Run, score and write ``OUT/metrics.json`` and ``OUT/per_object.csv`` (all or nothing); returns metrics."""
     from harness.scoring.evaluate import write_metrics
-    from monorarp.io import atomic_output_dir
+    from monorarp.app.io import atomic_output_dir
 
     start = time.perf_counter()
     with atomic_output_dir(out, owned_names=OUTPUT_NAMES) as tmp:

@@ -1,7 +1,7 @@
 """Pure geometry of the KITTI evaluation (no files): the camera from a calibration, and the
 rear-face distance and lateral offset of each labelled object.
 
-Frames are :mod:`monorarp.camera`'s (camera: x right, y down, z forward; ego: x right, y ahead,
+Frames are :mod:`monorarp.core.camera`'s (camera: x right, y down, z forward; ego: x right, y ahead,
 z up, origin at the camera); ``d_long`` / ``d_lat`` (m) as the ground truth defines them. The
 mounting read from a calibration and the label geometry: docs/kitti.md.
 """
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from monorarp.camera import CameraError, CameraModel
+from monorarp.core.camera import CameraError, CameraModel
 
 #: Velodyne axes (x forward, y left, z up) -> ego axes (x right, y ahead, z up) (as in harness.export.geometry).
 R_EGO_FROM_VELO = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -61,7 +61,7 @@ def camera_from_calib(calib: dict[str, np.ndarray], width: int, height: int, cam
     """``(camera, t, info)``: the camera of an image of ``width x height`` px, the label-to-camera offset
     ``t`` (m) and where height and pitch came from. Options win over the calibration.
 
-    Raises :class:`~monorarp.camera.CameraError` naming ``where`` when no height can be had or the
+    Raises :class:`~monorarp.core.camera.CameraError` naming ``where`` when no height can be had or the
     result is impossible (e.g. the horizon outside the image), naming ``--horizon-row`` when that row is
     outside the image or gives a pitch beyond +-45 deg.
     """

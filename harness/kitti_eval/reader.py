@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from monorarp.errors import UserError
-from monorarp.readers import MAX_JSON_BYTES, read_text
+from monorarp.core.errors import UserError
+from monorarp.core.readers import MAX_JSON_BYTES, read_text
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 OBJECT_DIRS = ("image_2", "label_2", "calib")

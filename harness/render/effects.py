@@ -15,9 +15,9 @@ import cv2
 import numpy as np
 
 from harness.render.sensor import apply_sensor
-from harness.scenario import Conditions, Scenario
-from harness.world import VehicleState, WorldState
-from monorarp.camera import CameraModel
+from harness.world.scenario import Conditions, Scenario
+from harness.world.state import VehicleState, WorldState
+from monorarp.core.camera import CameraModel
 
 GAMMA = 2.2
 KOSCHMIEDER = 3.912           # -ln(0.02): contrast falls to 2 % at the visibility distance

@@ -1,6 +1,6 @@
 """Low-poly car-like vehicle meshes and their colours.
 
-Model frame (see :mod:`harness.render.geometry`): X forward, Y left, Z up, origin
+Model frame (see :mod:`harness.world.geometry`): X forward, Y left, Z up, origin
 on the ground at the footprint centre. Every mesh fills its length x width
 footprint exactly: the rear bumper is at X = -length/2 (so ``d_long`` measures
 the distance to it), the body sides at Y = +-width/2, and it rises from the

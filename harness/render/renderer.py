@@ -39,10 +39,10 @@ from OpenGL import GL  # noqa: E402
 
 from harness.render import effects, geometry, meshes, passes, road, shading, visibility  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
-from harness.scenario import Scenario  # noqa: E402
+from harness.world.scenario import Scenario  # noqa: E402
 from harness.simulation.placement import road_plan, road_profile  # noqa: E402
-from harness.world import VehicleState, WorldState  # noqa: E402
-from monorarp.camera import CameraModel  # noqa: E402
+from harness.world.state import VehicleState, WorldState  # noqa: E402
+from monorarp.core.camera import CameraModel  # noqa: E402
 
 SKY_RGB = (0.62, 0.74, 0.90)
 ZNEAR_M = 0.05
@@ -154,7 +154,7 @@ class Renderer:
         self.frame_camera: CameraModel = self.camera            # the true camera of the current frame
         self._motion = None
         if scenario.camera_motion is not None:
-            from harness.camera_motion import CameraMotionModel
+            from harness.world.camera_motion import CameraMotionModel
 
             self._motion = CameraMotionModel(scenario.camera_motion, self.camera, scenario.fps, scenario.seed)
         self._motion_frame: int | None = None

@@ -10,11 +10,11 @@ Lane boundary i (0..lanes) is the line y = (i - 0.5) * lane_width; a marking of
 edge line's centre (at least to its outer side); grass beyond, and before/after
 the road's ends.
 
-With a vertical profile (:mod:`harness.road_profile`) every rectangle is cut across the road at
+With a vertical profile (:mod:`harness.world.road_profile`) every rectangle is cut across the road at
 the profile's sample points (1 m apart inside each vertical curve) and each vertex lifted to
 ``z(x)``, so the surfaces bend with the road and still tile it.
 
-With a horizontal plan (:mod:`harness.road_plan`) every rectangle is also cut across the road
+With a horizontal plan (:mod:`harness.world.road_plan`) every rectangle is also cut across the road
 ``PLAN_STEP_M`` apart over each curve and each vertex ``(x, y)`` moved to ``plan.to_plane(x, y)``;
 the grass then reaches ``min(GRASS_EXTENT_M, 0.5 R_min)`` beside the road, so that on the inside
 of the tightest curve it stops before the centre of curvature, where the mapping would fold.
@@ -25,9 +25,9 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from harness.road_plan import RoadPlan
-from harness.road_profile import RoadProfile
-from harness.scenario import Road
+from harness.world.road_plan import RoadPlan
+from harness.world.road_profile import RoadProfile
+from harness.world.scenario import Road
 
 GRASS_EXTENT_M = 2000.0
 PROFILE_STEP_M = 1.0

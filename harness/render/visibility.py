@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monorarp.camera import CameraModel
+from monorarp.core.camera import CameraModel
 
 
 @dataclass(frozen=True)

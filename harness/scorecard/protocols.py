@@ -28,10 +28,10 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from harness.config_io import Seed, validate_config
-from harness.scenario import ScenarioError, load_scenario_dict
-from monorarp.errors import UserError
-from monorarp.readers import read_yaml
+from harness.world.config_io import Seed, validate_config
+from harness.world.scenario import ScenarioError, load_scenario_dict
+from monorarp.core.errors import UserError
+from monorarp.core.readers import read_yaml
 
 KMH = 1 / 3.6
 #: Target vehicle models (length, width) a trial draws from: compact, mid-size, estate, SUV, van.

@@ -9,7 +9,7 @@ Layout of ``DIR`` (as a sweep's: each run directory appears complete or not at a
     DIR/report.html                                     the scorecard section (harness.scorecard.report)
 
 Every protocol, option and pipeline is checked before anything is written: a
-problem raises :class:`~monorarp.errors.UserError` (one line, exit 2).
+problem raises :class:`~monorarp.core.errors.UserError` (one line, exit 2).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.scenario import ScenarioError, parse_scenario
+from harness.world.scenario import ScenarioError, parse_scenario
 from harness.scorecard import score
 from harness.scorecard.protocols import ProtocolError, Trial, expand_protocol, load_protocol
 from harness.scoring.warnings import braking_alarm
@@ -31,9 +31,9 @@ from harness.sweep.expand import RunTask, _inject_seeds, sanitize
 from harness.sweep.orchestrate import execute, finished, prepare_out_dir
 from harness.sweep.spec import Variant, run_mapping
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
-from monorarp.readers import read_json_or_none
-from monorarp.config_options import CLI_EGO_SPEED, WARNING_THRESHOLD_S
-from monorarp.pipeline import PipelineConfig
+from monorarp.core.readers import read_json_or_none
+from monorarp.app.options import CLI_EGO_SPEED, WARNING_THRESHOLD_S
+from monorarp.pipeline.runner import PipelineConfig
 
 PROTOCOL_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "fcw"
 SUITES = ("nhtsa", "ncap", "cut_in", "nominal", "risk")
@@ -84,8 +84,8 @@ def variant_for(trial: Trial, opts: ScorecardOptions) -> Variant:
 
 def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
     """Every trial of the chosen suites and its run task; raises UserError for any bad input."""
-    from monorarp.errors import UserError
-    from monorarp.pipeline import Pipeline
+    from monorarp.core.errors import UserError
+    from monorarp.pipeline.runner import Pipeline
 
     if opts.trials is not None and opts.trials < 1:
         raise ProtocolError(f"--trials: must be >= 1, got {opts.trials}")
@@ -134,7 +134,7 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
 def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., Executor] = make_executor) -> dict:
     """Run every trial not already finished, then score and write ``scorecard.json`` and ``report.html``."""
     from harness.scorecard.report import render_scorecard
-    from monorarp.io import interrupts_deferred, write_atomic, write_json_atomic
+    from monorarp.app.io import interrupts_deferred, write_atomic, write_json_atomic
 
     out = Path(out)
     trials, tasks = build_tasks(opts)
@@ -252,7 +252,7 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
         "risk": score.pooled_risk(risk_runs) if risk_runs else None,
         "failed_runs": failed,
     }
-    from monorarp.io import to_jsonable
+    from monorarp.app.io import to_jsonable
     return to_jsonable(card), risk_runs
 
 

@@ -16,7 +16,7 @@
   AUROC (Mann-Whitney) and average precision (step-wise, as scikit-learn's
   ``average_precision_score``) of the 1/TTC risk, of the ``fcw`` warning stage's 1/TTC
   (``fcw_ttc``: its in-path test with its sigma margins and vetoes, within 10 s), of the
-  adverse-manoeuvre 1/TTC (``manoeuvre_ttc``, :class:`monorarp.risk.ManoeuvreTTCRisk`) and, where the
+  adverse-manoeuvre 1/TTC (``manoeuvre_ttc``, :class:`monorarp.risk.estimators.ManoeuvreTTCRisk`) and, where the
   runs have it, the Monte Carlo probability, at each horizon. ``truth_reference`` scores the
   truth's own 1/TTC (no estimator): what a perfect state estimate would give a 1/TTC score.
 """

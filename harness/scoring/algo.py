@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.config_options import WARNING_THRESHOLD_S
+from monorarp.app.options import WARNING_THRESHOLD_S
 
 #: Longitudinal range bins of the ground-truth distance ``d_long`` (m), [lo, hi).
 RANGE_BINS: dict[str, tuple[float, float]] = {

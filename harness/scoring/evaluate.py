@@ -20,11 +20,11 @@ from harness.scoring.match import MIN_IOU, as_boxes, match_boxes, split_ignored
 from harness.scoring.mot import MotScorer
 from harness.scoring.records import ObjectRecord, _cell
 from harness.scoring.warnings import warning_metrics
-from harness.truth import FrameTruth, ObjectTruth
-from monorarp.camera import CameraModel
-from monorarp.io import write_json_atomic
-from monorarp.config_options import WARNING_THRESHOLD_S
-from monorarp.types import FrameResult, RiskEstimate
+from harness.world.truth import FrameTruth, ObjectTruth
+from monorarp.core.camera import CameraModel
+from monorarp.app.io import write_json_atomic
+from monorarp.app.options import WARNING_THRESHOLD_S
+from monorarp.core.types import FrameResult, RiskEstimate
 
 NAN = float("nan")
 #: Keys of ``metrics["tracking"]`` (all null when tracking is not scored).
@@ -281,7 +281,7 @@ def evaluate(truths: Sequence[FrameTruth], results: Sequence[FrameResult], cfg: 
     for ``warning.*`` (:mod:`harness.scoring.warnings`); None: ``cfg.warning_threshold_s``.
     ``tracking=False``: the frames are independent images, ``tracking.*`` is all null.
 
-    Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`monorarp.io.to_jsonable`.
+    Returns ``(metrics, records)``; ``metrics`` is JSON-ready after :func:`monorarp.app.io.to_jsonable`.
     """
     if len(truths) != len(results):
         raise ValueError(f"{len(truths)} truths but {len(results)} results")

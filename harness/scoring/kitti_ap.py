@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.kitti_eval.geometry import DIFFICULTIES, passes
-from monorarp.boxes import as_boxes, intersection, iou_matrix
+from monorarp.core.boxes import as_boxes, intersection, iou_matrix
 
 NEIGHBOUR_CLASS = {"car": "van", "pedestrian": "person_sitting"}
 
@@ -22,7 +22,7 @@ NEIGHBOUR_CLASS = {"car": "van", "pedestrian": "person_sitting"}
 def inter_over_first(a, b) -> np.ndarray:
     """(N, M) intersection area over the area of each box of ``a`` (the devkit's overlap with ignored regions).
 
-    Not an IoU (:func:`monorarp.boxes.iou_matrix`): a detection inside a large DontCare
+    Not an IoU (:func:`monorarp.core.boxes.iou_matrix`): a detection inside a large DontCare
     region overlaps it fully even though their IoU is small.
     """
     a, b = as_boxes(a), as_boxes(b)

@@ -1,7 +1,7 @@
 """Per-frame assignment of estimated boxes to ground-truth boxes.
 
 Boxes are ``(x1, y1, x2, y2)`` in continuous pixel coordinates (see
-:mod:`monorarp.types`); area = (x2 - x1) * (y2 - y1). A pair may be matched
+:mod:`monorarp.core.types`); area = (x2 - x1) * (y2 - y1). A pair may be matched
 only when its IoU is at least ``min_iou``; among those, the assignment that
 maximises the total IoU is chosen (Hungarian algorithm, not greedy).
 """
@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from monorarp.boxes import as_boxes, iou_matrix
+from monorarp.core.boxes import as_boxes, iou_matrix
 
 MIN_IOU = 0.5
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from harness.scoring.hota import HotaAccumulator, HotaResult
 from harness.scoring.match import MIN_IOU, split_ignored
-from monorarp.boxes import as_boxes, iou_matrix
+from monorarp.core.boxes import as_boxes, iou_matrix
 
 METRICS = ("num_frames", "mota", "motp", "idf1", "idp", "idr", "num_switches", "num_false_positives",
            "num_misses", "num_objects", "num_matches", "num_fragmentations", "mostly_tracked",

@@ -1,6 +1,6 @@
 """Forward-collision warnings scored as episodes against the truth (``warning.*`` of ``metrics.json``).
 
-The pipeline decides (:mod:`monorarp.warning`); the harness only scores: episodes, conflict
+The pipeline decides (:mod:`monorarp.warning.fcw`); the harness only scores: episodes, conflict
 frames, false alarms, first-warning TTC (s), lead time (s) and exposure (s, km); and, for a
 diagnosis of each episode, the warned vehicle's true TTC had it kept its braking (s). Their
 definitions: docs/metrics.md (warning episodes).
@@ -14,9 +14,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from harness.scoring.match import as_boxes, match_boxes
-from harness.truth import FrameTruth, ObjectTruth
-from monorarp.ttc import closing_time
-from monorarp.types import FrameResult
+from harness.world.truth import FrameTruth, ObjectTruth
+from monorarp.risk.ttc import closing_time
+from monorarp.core.types import FrameResult
 
 BRAKING_DIFF_S = 0.1        # the truth's acceleration: central difference of its speeds over +- this (s)
 BRAKING_MAX_LATERAL_MPS = 0.5   # the braking TTC is asked only of a vehicle keeping its lane (|v_lat|, m/s)
@@ -111,7 +111,7 @@ def true_accelerations(truths: Sequence[FrameTruth], k: int, diff_s: float = BRA
 def braking_ttc(obj: ObjectTruth, accel_mps2: float) -> float | None:
     """The true TTC (s) of a vehicle on a collision course (``obj.ttc``) had its relative longitudinal
     acceleration ``accel_mps2`` been held: the gap its constant-velocity TTC implies, ``ttc x -v_long``, closed
-    at ``v_long`` and that acceleration (:func:`monorarp.ttc.closing_time`). None for a vehicle on no course, or
+    at ``v_long`` and that acceleration (:func:`monorarp.risk.ttc.closing_time`). None for a vehicle on no course, or
     moving sideways (|v_lat| over 0.5 m/s: its course is not the gap's alone)."""
     if obj.ttc is None or obj.v_long is None or obj.v_long >= 0 or abs(obj.v_lat or 0.0) > BRAKING_MAX_LATERAL_MPS:
         return None

@@ -1,4 +1,4 @@
-"""Simulation adapter over highway-env: scenario in, one :class:`~harness.world.WorldState` per frame out.
+"""Simulation adapter over highway-env: scenario in, one :class:`~harness.world.state.WorldState` per frame out.
 
 * :mod:`.road` — the straight multi-lane highway-env road network a scenario describes;
 * :mod:`.placement` — where the ego, placed vehicles and random traffic start (pure geometry);

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 
-from harness import scenario as sc
+from harness.world import scenario as sc
 from harness.simulation.vehicles import Brake, Cruise, FollowIDM, ScenarioVehicle
 
 TIME_EPS_S = 1e-9

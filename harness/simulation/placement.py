@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.road_plan import RoadPlan
-from harness.road_profile import RoadProfile
+from harness.world.road_plan import RoadPlan
+from harness.world.road_profile import RoadProfile
 
 EGO_START_X_M = 250.0
 """Ego centre at t = 0: far enough from the road start for vehicles placed up to 200 m behind."""

@@ -13,7 +13,7 @@ from highway_env.road.lane import LineType, StraightLane
 from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.objects import Landmark
 
-from harness import scenario as sc
+from harness.world import scenario as sc
 
 NODES = ("0", "1")
 """Start and end node of the single road segment."""

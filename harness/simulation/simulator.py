@@ -16,14 +16,14 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from harness import scenario as sc
-from harness.scenario import ScenarioError
+from harness.world import scenario as sc
+from harness.world.scenario import ScenarioError
 from harness.simulation.events import timed_events
 from harness.simulation.placement import (
     EGO_START_X_M, ROAD_START_MARGIN_M, Footprint, cut_in_distance, placed_centre_x, road_plan, road_profile, traffic_slots)
 from harness.simulation.road import build_road, lane_centre_y
 from harness.simulation.vehicles import Clock, ScenarioVehicle, StationaryVehicle
-from harness.world import VehicleState, WorldState
+from harness.world.state import VehicleState, WorldState
 
 LOOKAHEAD_M = 200.0
 """Road the ego must still have ahead of it at the scenario's end (m)."""

@@ -20,7 +20,7 @@ from highway_env.vehicle.behavior import IDMVehicle
 from highway_env.vehicle.kinematics import Vehicle
 from highway_env.vehicle.objects import Obstacle
 
-from harness import scenario as sc
+from harness.world import scenario as sc
 
 if TYPE_CHECKING:
     from harness.simulation.events import TimedEvent

@@ -15,7 +15,7 @@ Every executor gives the same metrics: a run is a pure function of its task.
 A worker process that dies (SIGKILL, segfault, OOM) or overruns ``run_timeout_s`` fails
 its run, with the cause, not the sweep; the other runs go on.
 
-With a frame cache (:mod:`harness.frame_cache`), the parallel executors hand out
+With a frame cache (:mod:`harness.run.frame_cache`), the parallel executors hand out
 tasks through :class:`RenderOnceQueue`: the first run of each scenario instance
 renders it, the runs sharing its frames start only when it has finished (and
 read them from the cache); meanwhile the other workers render other instances.
@@ -34,7 +34,7 @@ from harness.sweep import faults, worker
 from harness.sweep.expand import RunTask
 from harness.sweep.pool import ProcessExecutor, record_failure
 from harness.sweep.worker import RunOutcome
-from monorarp.errors import UserError
+from monorarp.core.errors import UserError
 
 #: Thread-count variables set in each worker: BLAS/OpenMP, and Mesa llvmpipe's rasteriser threads.
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS", "LP_NUM_THREADS")
@@ -98,7 +98,7 @@ class RenderOnceQueue:
 
 # -------------------------------------------------------------------- local
 class SerialExecutor:
-    """Runs in the calling process (lets tests monkeypatch :func:`harness.run.run_scenario`)."""
+    """Runs in the calling process (lets tests monkeypatch :func:`harness.run.runner.run_scenario`)."""
 
     workers = 1
 

@@ -27,9 +27,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from harness.scenario import ScenarioError, load_scenario_dict, parse_scenario
+from harness.world.scenario import ScenarioError, load_scenario_dict, parse_scenario
 from harness.sweep.spec import SweepSpec, SweepSpecError, apply_override, load_sweep_spec, run_mapping
-from monorarp.errors import UserError
+from monorarp.core.errors import UserError
 
 MAX_ID_LENGTH = 180
 
@@ -51,7 +51,7 @@ class RunTask:
     warning_threshold_s: float
     annotate: bool = False
     error: str | None = None           # expansion-time error: the run is recorded as failed, never executed
-    cache_dir: str | None = None       # frame cache (harness.frame_cache); not a parameter: same metrics without
+    cache_dir: str | None = None       # frame cache (harness.run.frame_cache); not a parameter: same metrics without
     cache_max_bytes: int | None = None
 
     def params(self) -> dict:
@@ -107,7 +107,7 @@ def run_id(scenario_key: str, seed: int, grid: dict[str, Any], variant: str) -> 
 
 # -------------------------------------------------------------- components
 def _camera_for_preflight(scenarios: list[dict]):
-    from harness.scenario import Camera
+    from harness.world.scenario import Camera
 
     for data in scenarios:
         try:
@@ -120,7 +120,7 @@ def _camera_for_preflight(scenarios: list[dict]):
 def _inject_seeds(pipeline: dict, seed: int) -> dict:
     """Give every component whose factory declares ``uses_seed`` the run's seed, unless the spec set one."""
     from monorarp.detection import is_model_path
-    from monorarp.registry import get_factory, uses
+    from monorarp.pipeline.registry import get_factory, uses
 
     out = copy.deepcopy(pipeline)
     for kind, comp in out.items():
@@ -134,7 +134,7 @@ def _inject_seeds(pipeline: dict, seed: int) -> dict:
 def check_components(spec: SweepSpec, spec_path: Path, scenarios: list[dict]) -> dict[str, dict]:
     """Each variant's pipeline mapping, after building it once (raises :class:`SweepSpecError`)."""
     from monorarp.detection import is_model_path
-    from monorarp.pipeline import Pipeline
+    from monorarp.pipeline.runner import Pipeline
 
     camera = _camera_for_preflight(scenarios)
     configs = {}

@@ -30,11 +30,11 @@ from harness.sweep.expand import Expansion, RunTask, load_and_expand
 from harness.sweep.report import render_report
 from harness.sweep.summary import collect_rows, write_summary
 from harness.sweep.worker import METRICS_JSON, RUN_JSON, RunOutcome, describe_error
-from monorarp.io import OutputError, interrupts_deferred, write_atomic
-from monorarp.readers import read_json_or_none
+from monorarp.app.io import OutputError, interrupts_deferred, write_atomic
+from monorarp.core.readers import read_json_or_none
 
 if TYPE_CHECKING:
-    from harness.frame_cache import FrameCache
+    from harness.run.frame_cache import FrameCache
 
 RUNS = "runs"
 REPORT_HTML = "report.html"
@@ -166,7 +166,7 @@ def run_sweep(spec_path: str | Path, out: str | Path, *, executor: str = "local"
               make: Callable[..., Executor] = make_executor,
               cache: FrameCache | Callable[[], FrameCache | None] | None = None,
               run_timeout_s: float | None = None) -> SweepResult:
-    """Run a sweep; raises :class:`~monorarp.errors.UserError` (nothing run) for a bad spec, output or executor.
+    """Run a sweep; raises :class:`~monorarp.core.errors.UserError` (nothing run) for a bad spec, output or executor.
 
     ``run_timeout_s``: a run taking longer (seconds of wall time) is ended and recorded as failed.
 

@@ -69,7 +69,7 @@ def _worker_main(conn: Connection, threads: int, parent_pid: int) -> None:
 
     _init_process(threads)
     try:                     # imported before the first run starts its clock (errors show in that run)
-        import harness.run  # noqa: F401
+        import harness.run.runner  # noqa: F401
         import harness.scoring.evaluate  # noqa: F401
     except Exception:  # noqa: BLE001
         pass

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from monorarp.config_options import WARNING_THRESHOLD_S
+from monorarp.app.options import WARNING_THRESHOLD_S
 
 DEFAULT_HEADLINE = ("distance.rel_err_median", "distance.abs_err_median_m", "rel_velocity.abs_err_median_mps",
                     "tracking.mota", "tracking.idf1", "tracking.id_switches", "ttc.warning.precision",

@@ -15,7 +15,7 @@ Example (paths are relative to the spec file)::
       - {name: kcf, detector: oracle, tracker: kcf, velocity: difference}
 
 Every override path (grid, ``overrides``, per-scenario ``overrides``) is checked
-against the scenario schema (:class:`harness.scenario.Scenario`) when the spec
+against the scenario schema (:class:`harness.world.scenario.Scenario`) when the spec
 is loaded; list items are addressed by index (``vehicles.0.speed_mps``) or, for
 named items, by name (``vehicles.lead.speed_mps``). Unknown keys are rejected;
 errors name the file and the field.
@@ -30,12 +30,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from harness.config_io import Seed, validate_config
-from harness.scenario import Scenario
-from monorarp.config_options import WARNING_THRESHOLD_S
-from monorarp.errors import UserError
-from monorarp.readers import read_yaml
-from monorarp.pipeline import ComponentConfig, PipelineConfig
+from harness.world.config_io import Seed, validate_config
+from harness.world.scenario import Scenario
+from monorarp.app.options import WARNING_THRESHOLD_S
+from monorarp.core.errors import UserError
+from monorarp.core.readers import read_yaml
+from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
 
 _DEFAULT = PipelineConfig()
 _NAME = r"^[A-Za-z0-9][A-Za-z0-9_.+\-]*$"
@@ -169,7 +169,7 @@ class ScenarioRef(_Model):
 class Variant(_Model):
     """One pipeline configuration in the spec file's flat form (``<stage>`` and ``<stage>_kwargs``);
     :meth:`pipeline_config` is the one place it becomes a :class:`PipelineConfig`, whose defaults it
-    takes (no ego-speed stage unless one is named). Component names resolve through :mod:`monorarp.registry`.
+    takes (no ego-speed stage unless one is named). Component names resolve through :mod:`monorarp.pipeline.registry`.
 
     ``detector`` is a registered name, ``oracle`` (ground-truth boxes) or an
     ``.onnx`` path (relative to the spec file). ``velocity`` is shorthand for
@@ -190,7 +190,7 @@ class Variant(_Model):
     ego_speed_kwargs: dict[str, Any] = {}
     warning: str | None = _DEFAULT.warning.name
     warning_kwargs: dict[str, Any] = {}
-    horizon: str | None = Field(None, description="horizon stage (monorarp.horizon: calibrated, online); "
+    horizon: str | None = Field(None, description="horizon stage (monorarp.horizon.stages: calibrated, online); "
                                                   "null: the calibrated horizon, no stage")
     horizon_kwargs: dict[str, Any] = {}
 

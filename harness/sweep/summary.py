@@ -23,8 +23,8 @@ from typing import Any
 
 from harness.sweep.expand import RunTask, format_value
 from harness.sweep.worker import ERROR_JSON, METRICS_JSON, RUN_JSON
-from monorarp.io import write_atomic, write_json_atomic
-from monorarp.readers import read_json_or_none
+from monorarp.app.io import write_atomic, write_json_atomic
+from monorarp.core.readers import read_json_or_none
 
 SUMMARY_JSON = "summary.json"
 SUMMARY_CSV = "summary.csv"

@@ -1,6 +1,6 @@
 """One sweep run, isolated: whatever happens, ``runs/<id>/`` appears complete or not at all.
 
-Success: the files of :func:`harness.run.run_scenario` (``metrics.json``,
+Success: the files of :func:`harness.run.runner.run_scenario` (``metrics.json``,
 ``per_object.csv``, ``camera.json``, ``ground_truth.jsonl``, ``annotated.mp4``
 when videos are on) plus ``run.json`` (``{"id", "status": "ok", "error": null,
 "params", "wall_time_s"}``). Failure: ``run.json`` with ``"status": "failed"``
@@ -29,15 +29,15 @@ RUN_JSON = "run.json"
 ERROR_JSON = "error.json"
 METRICS_JSON = "metrics.json"
 
-_detections = None    # this process's DetectionMemo (harness.sweep.detection_memo), made by the first run
+_detections = None    # this process's DetectionMemo (harness.run.detection_memo), made by the first run
 
 
 def detection_memo():
-    """This process's :class:`~harness.sweep.detection_memo.DetectionMemo`: runs that feed the same detector the
+    """This process's :class:`~harness.run.detection_memo.DetectionMemo`: runs that feed the same detector the
     same frames (the variants of one scenario instance) compute its detections once."""
     global _detections
     if _detections is None:
-        from harness.sweep.detection_memo import DetectionMemo
+        from harness.run.detection_memo import DetectionMemo
 
         _detections = DetectionMemo()
     return _detections
@@ -52,7 +52,7 @@ class RunOutcome:
 
 
 def owned_names() -> tuple[str, ...]:
-    from harness.run_outputs import OUTPUT_NAMES
+    from harness.run.outputs import OUTPUT_NAMES
 
     return (*OUTPUT_NAMES, RUN_JSON, ERROR_JSON)
 
@@ -73,21 +73,21 @@ def describe_error(e: BaseException) -> str:
 def run_into(task: RunTask, out: Path) -> RunOutcome:
     """Run ``task`` writing its files into the existing empty directory ``out``; never raises for run errors."""
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from monorarp.io import write_json_atomic
+    from monorarp.app.io import write_json_atomic
 
     t0 = time.perf_counter()
     error, tb = task.error, None
     if error is None:
         try:
-            import harness.run as hrun
-            from harness.scenario import parse_scenario
+            import harness.run.runner as hrun
+            from harness.world.scenario import parse_scenario
             from harness.scoring.evaluate import EvalConfig
 
             scenario = parse_scenario(task.scenario, task.scenario_file)
             n = scenario.n_frames if task.frames is None else min(task.frames, scenario.n_frames)
             extra = {}
             if task.cache_dir is not None:
-                from harness.frame_cache import FrameCache
+                from harness.run.frame_cache import FrameCache
 
                 extra["cache"] = FrameCache(task.cache_dir, task.cache_max_bytes)
             with faults.writing(task.id):
@@ -113,7 +113,7 @@ def run_into(task: RunTask, out: Path) -> RunOutcome:
 
 def execute(task: RunTask, runs_dir: str) -> RunOutcome:
     """Run ``task`` into ``runs_dir/<id>/`` atomically (local executors: the driver's filesystem)."""
-    from monorarp.io import atomic_output_dir
+    from monorarp.app.io import atomic_output_dir
 
     with atomic_output_dir(Path(runs_dir) / task.id, owned_names=owned_names()) as tmp:
         outcome = run_into(task, tmp)
@@ -133,7 +133,7 @@ def execute_detached(task: RunTask) -> tuple[RunOutcome, dict[str, bytes]]:
 
 def write_run_files(runs_dir: str | Path, run_id: str, files: dict[str, bytes]) -> None:
     """Write a detached run's files as ``runs_dir/<run_id>/``, atomically."""
-    from monorarp.io import atomic_output_dir
+    from monorarp.app.io import atomic_output_dir
 
     allowed = set(owned_names())
     with atomic_output_dir(Path(runs_dir) / run_id, owned_names=owned_names()) as tmp:
@@ -145,7 +145,7 @@ def write_run_files(runs_dir: str | Path, run_id: str, files: dict[str, bytes]) 
 
 def failed_outcome_files(task: RunTask, error: str) -> dict[str, bytes]:
     """``run.json``/``error.json`` bytes for a run whose worker died before it could write them."""
-    from monorarp.io import dumps
+    from monorarp.app.io import dumps
 
     return {RUN_JSON: (dumps({"id": task.id, "status": "failed", "error": error, "params": task.params(),
                               "wall_time_s": None}, indent=2) + "\n").encode(),

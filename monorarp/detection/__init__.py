@@ -1,7 +1,7 @@
-"""Detectors: image (BGR uint8) -> list of :class:`monorarp.types.Detection`.
+"""Detectors: image (BGR uint8) -> list of :class:`monorarp.core.types.Detection`.
 
-Every detector has ``detect(image) -> list[Detection]`` (:class:`monorarp.types.Detector`).
-Built in (:mod:`monorarp.catalogue`): ``centernet`` (the project's own model, the default) and ``yolo``
+Every detector has ``detect(image) -> list[Detection]`` (:class:`monorarp.core.types.Detector`).
+Built in (:mod:`monorarp.pipeline.catalogue`): ``centernet`` (the project's own model, the default) and ``yolo``
 (Ultralytics YOLOv8/YOLO11 ONNX exports). :func:`load_detector` takes a
 registered name or a path to an ``.onnx`` file whose layout it recognises;
 :func:`build_detector` builds a pipeline config's detector stage with it.
@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING, Any
 from monorarp.detection.centernet import CenterNetDetector, is_centernet_layout
 from monorarp.detection.onnx_runtime import ModelError, open_session, outputs
 from monorarp.detection.yolo import YoloDetector, output_layout
-from monorarp.types import Detector
+from monorarp.core.types import Detector
 
 if TYPE_CHECKING:
-    from monorarp.pipeline import ComponentConfig
+    from monorarp.pipeline.runner import ComponentConfig
 
 
 def is_model_path(name: str | Path) -> bool:
@@ -37,7 +37,7 @@ def is_centernet(name_or_path: str) -> bool:
     (the caller refuses it, naming its option)."""
     if is_model_path(str(name_or_path)):
         return True
-    from monorarp import registry
+    from monorarp.pipeline import registry
     from monorarp.detection.centernet import CenterNetDetector
 
     try:
@@ -52,13 +52,13 @@ def load_detector(name_or_path: str | Path, camera: Any = None, **kw: Any) -> De
 
     For a path the output layout decides: outputs ``heatmap`` + ``ltrb`` -> CenterNet,
     one ``(1, 4+80, N)`` output -> YOLO. ``kw`` go to the detector's constructor; ``camera``
-    (a :class:`~monorarp.camera.CameraModel`) to detectors that use one (CenterNet's fovea).
-    Raises :class:`~monorarp.errors.UserError` (one line) for an unknown name, a missing or
+    (a :class:`~monorarp.core.camera.CameraModel`) to detectors that use one (CenterNet's fovea).
+    Raises :class:`~monorarp.core.errors.UserError` (one line) for an unknown name, a missing or
     invalid file, or an unrecognised layout.
     """
     s = str(name_or_path)
     if not is_model_path(s):
-        from monorarp.registry import build
+        from monorarp.pipeline.registry import build
 
         return build("detector", s, kw, camera)
     path = Path(s).expanduser()

@@ -15,14 +15,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from monorarp.boxes import iou
-from monorarp.camera import CameraModel
+from monorarp.core.boxes import iou
+from monorarp.core.camera import CameraModel
 from monorarp.detection.bottom_edge import refine_bottom as refine_bottom_edges
 from monorarp.detection.fovea import Fovea, merge
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
 from monorarp.detection.second_pass import helper_pool
-from monorarp.types import Detection, strong
+from monorarp.core.types import Detection, strong
 
 REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes/edge.md)
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_vehicle.onnx"
@@ -44,7 +44,7 @@ class CenterNetMeta:
 
     @classmethod
     def load(cls, model_path: Path) -> "CenterNetMeta":
-        from monorarp.readers import parse_json, read_text
+        from monorarp.core.readers import parse_json, read_text
 
         p = model_path.with_suffix(".json")
         if not p.is_file():

@@ -7,7 +7,7 @@ the horizon at the image's centre column, so a second pass over a crop around
 ``(c_x, horizon_row)`` at ``zoom`` times the full view's scale (at most the source's
 own resolution) gives them ``zoom`` times the pixels for the price of one more run.
 
-Coordinates: continuous source pixels (:mod:`monorarp.types`: pixel centres at
+Coordinates: continuous source pixels (:mod:`monorarp.core.types`: pixel centres at
 integers, an image of width W spans [-0.5, W - 0.5]).
 """
 
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monorarp.boxes import iou_matrix
+from monorarp.core.boxes import iou_matrix
 
 
 @dataclass(frozen=True)

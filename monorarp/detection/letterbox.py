@@ -1,6 +1,6 @@
 """Letterboxing: resize keeping the aspect ratio, pad to the network's input size, and undo it.
 
-Coordinates are continuous pixels in the convention of :mod:`monorarp.types`
+Coordinates are continuous pixels in the convention of :mod:`monorarp.core.types`
 (pixel centres at integers; an image of width W spans [-0.5, W - 0.5]).
 A resize by factor ``s`` maps ``x + 0.5`` to ``s * (x + 0.5)``; padding adds
 ``pad`` pixels on the left/top. Both directions are exact inverses.

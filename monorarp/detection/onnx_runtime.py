@@ -8,7 +8,7 @@ import io
 from dataclasses import dataclass
 from pathlib import Path
 
-from monorarp.errors import UserError
+from monorarp.core.errors import UserError
 
 MAX_SESSIONS = 8     # sessions kept for reuse (oldest dropped)
 _sessions: dict[tuple, object] = {}

@@ -9,7 +9,7 @@ Expected layout (``yolo export format=onnx``, no NMS in the graph):
 
 Decoding: best class per candidate, confidence threshold, class-wise NMS
 (``cv2.dnn.NMSBoxesBatched``), then the letterbox is undone so boxes are in the
-original image's continuous pixel convention (:mod:`monorarp.types`).
+original image's continuous pixel convention (:mod:`monorarp.core.types`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import numpy as np
 
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
-from monorarp.types import Detection
+from monorarp.core.types import Detection
 
 COCO_VEHICLES: dict[int, str] = {2: "car", 5: "bus", 7: "truck"}
 

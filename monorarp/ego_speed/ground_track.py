@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monorarp.camera import CameraModel
-from monorarp.ego_speed.geometry import EgoSpeedError
-from monorarp.ego_speed.lane_lines import LaneLineFinder
+from monorarp.core.camera import CameraModel
+from monorarp.lanes.geometry import EgoSpeedError
+from monorarp.lanes.lines import LaneLineFinder
 from monorarp.ego_speed.regression import pooled_slope
 from monorarp.ego_speed.stripes import StripeEdgeFinder, StripeEdges
 

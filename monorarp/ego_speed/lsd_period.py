@@ -25,8 +25,8 @@ from collections import deque
 import cv2
 import numpy as np
 
-from monorarp.camera import CameraModel
-from monorarp.ego_speed.geometry import EgoSpeedError, row_of_distance, row_scale
+from monorarp.core.camera import CameraModel
+from monorarp.lanes.geometry import EgoSpeedError, row_of_distance, row_scale
 from monorarp.ego_speed.ground_track import check_image, check_markings
 
 

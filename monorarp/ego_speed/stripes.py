@@ -18,9 +18,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from monorarp.camera import CameraModel
-from monorarp.ego_speed.geometry import GroundRows, row_distance, to_gray
-from monorarp.ego_speed.lane_lines import LaneLine
+from monorarp.core.camera import CameraModel
+from monorarp.lanes.geometry import GroundRows, row_distance, to_gray
+from monorarp.lanes.lines import LaneLine
 
 NEAR, FAR = 0, 1
 

@@ -1,7 +1,7 @@
 """Global (optimal) association of detections to tracks by box overlap.
 
 Boxes are ``(x1, y1, x2, y2)`` in continuous pixel coordinates (see
-:mod:`monorarp.types`). The cost of pairing is ``1 - IoU``; pairs below the IoU
+:mod:`monorarp.core.types`). The cost of pairing is ``1 - IoU``; pairs below the IoU
 gate are never made. The assignment minimises the total cost over all pairs at
 once (Hungarian algorithm), so one track cannot steal a detection that another
 track needs more -- unlike first-come greedy matching.
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from monorarp.boxes import iou_matrix
+from monorarp.core.boxes import iou_matrix
 
 
 def assign(cost: np.ndarray, max_cost: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -6,7 +6,7 @@ detection, ``labels``) plus the columns a tracker declares for its own motion
 model and track control (hit counts, misses, particles, ...). It hands out ids
 (counting up from 0, never reused until :meth:`TrackBook.reset`), counts the
 frames of the sequence, keeps the columns aligned when tracks are born or
-deleted, and turns rows into the :class:`~monorarp.types.Track` records the
+deleted, and turns rows into the :class:`~monorarp.core.types.Track` records the
 trackers output. The trackers keep only their motion model and association.
 """
 
@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from monorarp.types import Detection, Track
+from monorarp.core.types import Detection, Track
 
 _COMMON = {"ids": ((), np.int64), "age": ((), np.int64), "score": ((), np.float64)}
 

@@ -30,11 +30,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.boxes import iou_matrix
+from monorarp.core.boxes import iou_matrix
 from monorarp.tracking.association import assign
 from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.tracking.kalman_box import BoxKalman
-from monorarp.types import Detection, Track
+from monorarp.core.types import Detection, Track
 
 TRACKED, LOST = 0, 1
 DUPLICATE_IOU = 0.85

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from monorarp.tracking.association import associate_iou
-from monorarp.types import Detection, Track
+from monorarp.core.types import Detection, Track
 
 #: algorithm -> (factory attribute path, takes float rectangles)
 ALGORITHMS: dict[str, tuple[str, bool]] = {

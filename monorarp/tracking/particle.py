@@ -12,11 +12,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.boxes import intersection, iou_matrix
+from monorarp.core.boxes import intersection, iou_matrix
 from monorarp.tracking.appearance import BINS, bhattacharyya, colour_histograms
 from monorarp.tracking.association import assign, associate_iou
 from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
-from monorarp.types import Detection, Track
+from monorarp.core.types import Detection, Track
 
 _MIN_SIZE = 1.0  # px: particles never shrink a box below this
 _APP_RATE = 0.3         # appearance update weight, once a track has averaged 1 / _APP_RATE detections

@@ -24,7 +24,7 @@ import numpy as np
 from monorarp.tracking.association import associate_iou
 from monorarp.tracking.bookkeeping import BookTracker, TrackBook, detections_array
 from monorarp.tracking.kalman_box import BoxKalman
-from monorarp.types import Detection, Track
+from monorarp.core.types import Detection, Track
 
 
 class SortTracker(BookTracker):

@@ -1,0 +1,166 @@
+"""The command-line options that choose a pipeline's components, shared by every command that runs one.
+
+:func:`add_pipeline_options` adds them to a parser (only the stages a command lets the user choose);
+:func:`pipeline_config` turns the parsed options into a :class:`~monorarp.pipeline.runner.PipelineConfig`,
+checking every name against :mod:`monorarp.pipeline.registry` (built-ins and entry-point plug-ins alike). A stage
+without options keeps :class:`PipelineConfig`'s default, which is where every default lives, except the
+command-line defaults stated here because they differ from a bare config:
+
+* ``--ego-speed`` defaults to :data:`CLI_EGO_SPEED` (a config without the option has no ego-speed stage);
+* ``--velocity`` (the geometric state estimator's) is written into the config, default ``kalman``;
+* ``--horizon calibrated`` (the default) means no horizon stage.
+
+:data:`WARNING_THRESHOLD_S` is the TTC (s) below which the display and the scoring mark a warning; the
+warning stage has its own threshold (:data:`monorarp.warning.fcw.DEFAULT_TTC_THRESHOLD_S`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Iterable
+from typing import Any
+
+from monorarp.pipeline import registry
+from monorarp.core.errors import UserError
+from monorarp.pipeline.runner import ComponentConfig, PipelineConfig, check_weak_detections
+
+STAGES = ("detector", "tracker", "state", "risk", "ego_speed", "horizon")
+CLI_EGO_SPEED = "ground_track"          # the run/video commands' ego-speed stage unless --ego-speed none
+VELOCITIES = ("kalman", "difference")
+DEFAULT_VELOCITY = "kalman"
+CALIBRATED = "calibrated"               # --horizon: the calibration's horizon, no horizon stage
+NONE = "none"                           # --ego-speed: no ego-speed stage
+WARNING_THRESHOLD_S = 2.0
+
+
+class _RegistryHelp(str):
+    """A help text whose ``{names}`` becomes the registry's names of ``kind`` only when help is shown
+    (argparse fills help texts with ``%``), so building a parser imports no component."""
+
+    kind: str
+
+    def __new__(cls, kind: str, text: str) -> "_RegistryHelp":
+        obj = super().__new__(cls, text)
+        obj.kind = kind
+        return obj
+
+    def __mod__(self, params: Any) -> str:
+        return str.__mod__(str(self).replace("{names}", ", ".join(registry.available(self.kind))), params)
+
+
+def default_name(kind: str) -> str:
+    """The default component of ``kind`` on the command line."""
+    if kind == "ego_speed":
+        return CLI_EGO_SPEED
+    return PipelineConfig.model_fields[kind].default.name
+
+
+def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STAGES,
+                         defaults: dict[str, str] | None = None) -> None:
+    """Add the options choosing ``stages`` (kinds of :data:`STAGES`) to ``p``.
+
+    ``defaults`` (kind -> name) replaces a stage's default where a command documents another one.
+    """
+    stages = set(stages)
+    unknown = stages - set(STAGES)
+    if unknown:
+        raise ValueError(f"no options for stages {sorted(unknown)}; options exist for {', '.join(STAGES)}")
+    defaults = defaults or {}
+    p.set_defaults(_pipeline_stages=tuple(k for k in STAGES if k in stages))   # read by pipeline_config
+
+    def default(kind: str) -> str:
+        return defaults.get(kind, default_name(kind))
+
+    if "detector" in stages:
+        p.add_argument("--detector", default=default("detector"), metavar="NAME|PATH.onnx",
+                       help=_RegistryHelp("detector", "registered detector ({names}) or an ONNX model file "
+                                          f"(CenterNet or YOLO layout); default: {default('detector')}"))
+        p.add_argument("--refine-bottom", choices=("on", "off"), default=None,
+                       help="CenterNet: sub-pixel bottom-edge refinement from the image (default: the detector's)")
+        p.add_argument("--weak-detections", type=float, default=None, metavar="SCORE",
+                       help="CenterNet: also give the tracker the boxes scoring from SCORE up to the detector's "
+                            "threshold, as weak detections (they extend tracks, never start one; only for a tracker "
+                            "that takes them, the particle one; default: off)")
+    if "tracker" in stages:
+        p.add_argument("--tracker", default=default("tracker"), metavar="NAME",
+                       help=_RegistryHelp("tracker", f"registered tracker ({{names}}; default: {default('tracker')})"))
+    if "state" in stages:
+        p.add_argument("--velocity", choices=VELOCITIES, default=DEFAULT_VELOCITY,
+                       help=f"relative velocity of the state estimator (default: {DEFAULT_VELOCITY})")
+    if "ego_speed" in stages:
+        p.add_argument("--ego-speed", default=default("ego_speed"), metavar="NAME|none",
+                       help=_RegistryHelp("ego_speed", "lane-marking ego-speed estimator ({names}), or none "
+                                          f"(default: {default('ego_speed')})"))
+    if "risk" in stages:
+        p.add_argument("--risk", default=default("risk"), metavar="NAME",
+                       help=_RegistryHelp("risk", "risk estimator ({names}): ttc is the paper's 1/TTC, monte_carlo "
+                                          "IDM/MOBIL rollouts, which take the ego speed from the ego-speed "
+                                          f"estimator (default: {default('risk')})"))
+    if "horizon" in stages:
+        p.add_argument("--horizon", default=CALIBRATED, metavar="NAME",
+                       help=_RegistryHelp("horizon", "horizon row of equation 3 ({names}): the calibration's every "
+                                          "frame, or this frame's lane-line vanishing point (online; for a camera "
+                                          "that pitches on its mount), or the calibration's plus the road's distance "
+                                          "per row from the lane lines' spacing (lane_width; for roads that are not "
+                                          f"flat; default: {CALIBRATED})"))
+
+
+def _component(kind: str, option: str, name: str, kwargs: dict[str, Any] | None = None,
+               check: bool = True) -> ComponentConfig:
+    from monorarp.detection import is_model_path
+
+    if check and not (kind == "detector" and is_model_path(name)):
+        try:
+            registry.get_factory(kind, name)
+        except registry.UnknownComponentError as e:
+            raise UserError(f"{option}: {e}") from None
+    return ComponentConfig(name=name, kwargs=kwargs or {})
+
+
+def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None, check: bool = True) -> PipelineConfig:
+    """The :class:`PipelineConfig` the options of :func:`add_pipeline_options` describe (stages without
+    options as in ``base``, default :class:`PipelineConfig`). Raises :class:`UserError` (one line naming
+    the option) for an option that does not apply and, with ``check``, for an unknown name (without it,
+    :meth:`Pipeline.from_config` refuses unknown names, for a command that checks its inputs first)."""
+    from monorarp.detection import is_centernet
+
+    cfg = base if base is not None else PipelineConfig()
+    stages = getattr(args, "_pipeline_stages", ())
+    update: dict[str, ComponentConfig | None] = {}
+    if "detector" in stages:
+        name, kw = str(args.detector), {}
+        refine = getattr(args, "refine_bottom", None)
+        if refine is not None:
+            if not is_centernet(name):
+                raise UserError(f"--refine-bottom applies to the CenterNet detector, not {name!r}")
+            kw["refine_bottom"] = refine == "on"
+        weak = getattr(args, "weak_detections", None)
+        if weak is not None:
+            if not is_centernet(name):
+                raise UserError(f"--weak-detections applies to the CenterNet detector, not {name!r}")
+            if not 0 <= weak <= 1:
+                raise UserError(f"--weak-detections must be a score in [0, 1], got {weak}")
+            kw["weak_score_threshold"] = weak
+        update["detector"] = _component("detector", "--detector", name, kw, check)
+    if "tracker" in stages:
+        update["tracker"] = _component("tracker", "--tracker", args.tracker, check=check)
+        if "detector" in stages and getattr(args, "weak_detections", None) is not None:
+            check_weak_detections(update["detector"], [args.tracker], "--weak-detections")
+    if "state" in stages:
+        update["state"] = ComponentConfig(name=cfg.state.name, kwargs={**cfg.state.kwargs, "velocity": args.velocity})
+    if "risk" in stages:
+        update["risk"] = _component("risk", "--risk", args.risk, check=check)
+    if "ego_speed" in stages:
+        ego = str(args.ego_speed)
+        update["ego_speed"] = None if ego.lower() == NONE else _component("ego_speed", "--ego-speed", ego, check=check)
+    if "horizon" in stages:
+        update["horizon"] = None if args.horizon == CALIBRATED else _component("horizon", "--horizon", args.horizon,
+                                                                                   check=check)
+    return cfg.model_copy(update=update)
+
+
+def default_pipeline_config() -> PipelineConfig:
+    """What :func:`pipeline_config` gives for a command line with every stage's option left out."""
+    p = argparse.ArgumentParser(add_help=False)
+    add_pipeline_options(p)
+    return pipeline_config(p.parse_args([]))

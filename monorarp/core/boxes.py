@@ -1,0 +1,46 @@
+"""Axis-aligned box overlap: the one IoU of the project.
+
+Boxes are ``(x1, y1, x2, y2)`` in continuous pixel coordinates (see
+:mod:`monorarp.core.types`): width ``x2 - x1``, no ``+1`` (KITTI's devkit counts the
+same way). A box with zero or negative width or height has area 0 and IoU 0
+with everything.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+Boxes = Sequence[Sequence[float]] | np.ndarray
+
+
+def as_boxes(boxes: Boxes) -> np.ndarray:
+    """Any sequence of 4-tuples -> float (N, 4) array (empty gives shape (0, 4))."""
+    return np.asarray(boxes, dtype=float).reshape(-1, 4)
+
+
+def area(b: np.ndarray) -> np.ndarray:
+    """(..., 4) boxes -> (...) area in px^2, 0 for degenerate boxes."""
+    return np.clip(b[..., 2] - b[..., 0], 0.0, None) * np.clip(b[..., 3] - b[..., 1], 0.0, None)
+
+
+def intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Intersection area (px^2) of (..., 4) boxes ``a`` with broadcastable ``b``."""
+    iw = np.clip(np.minimum(a[..., 2], b[..., 2]) - np.maximum(a[..., 0], b[..., 0]), 0.0, None)
+    ih = np.clip(np.minimum(a[..., 3], b[..., 3]) - np.maximum(a[..., 1], b[..., 1]), 0.0, None)
+    return iw * ih
+
+
+def iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Element-wise IoU of (..., 4) boxes ``a`` with broadcastable ``b``."""
+    inter = intersection(a, b)
+    union = area(a) + area(b) - inter
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(union > 0.0, inter / union, 0.0)
+
+
+def iou_matrix(a: Boxes, b: Boxes) -> np.ndarray:
+    """(N, 4) and (M, 4) boxes -> (N, M) intersection over union."""
+    a, b = as_boxes(a), as_boxes(b)
+    return iou(a[:, None, :], b[None, :, :])
