@@ -31,7 +31,7 @@ from harness.world.scenario import load_scenario_dict, parse_scenario
 from harness.scoring.evaluate import out_of_range
 from harness.scoring.match import MIN_IOU, as_boxes, split_ignored
 from harness.simulation.simulator import simulate
-from monorarp.detection import build_detector
+from monorarp.pipeline.detectors import build_detector
 from monorarp.pipeline.runner import ComponentConfig
 
 CONDITIONS = {

@@ -137,7 +137,7 @@ def make_inputs(work: Path) -> None:
     import os
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from monorarp.detection import build_detector
+    from monorarp.pipeline.detectors import build_detector
     from harness.export.exporter import export
     from harness.export.source import open_source
     from monorarp.pipeline.runner import ComponentConfig

@@ -11,7 +11,7 @@ import pytest
 onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper  # noqa: E402
 
-from monorarp.detection import load_detector
+from monorarp.pipeline.detectors import load_detector
 from monorarp.detection.centernet import CenterNetDetector
 from monorarp.detection.yolo import YoloDetector  # noqa: E402
 from monorarp.detection.centernet import DEFAULT_MODEL  # noqa: E402

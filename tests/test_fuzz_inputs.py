@@ -472,7 +472,7 @@ def test_onnx_sidecar_json(base, capsys, doc: Doc):
 
 
 def _onnx_case(base, capsys, doc: Doc, suffix: str):
-    from monorarp.detection import load_detector
+    from monorarp.pipeline.detectors import load_detector
 
     work = _workdir(base)
     shutil.copy(base / "quick.yaml", work / "quick.yaml")

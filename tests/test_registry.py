@@ -24,7 +24,8 @@ def test_importing_the_registry_imports_no_component():
     loaded = _run("import sys, monorarp.pipeline.registry as r\n"
                   "r.available('tracker')\n"
                   "print(','.join(sorted(m for m in sys.modules if m.startswith(('monorarp', 'harness')))))")
-    assert loaded.split(",") == ["monorarp", "monorarp.pipeline.catalogue", "monorarp.core.errors", "monorarp.pipeline.registry"]
+    assert loaded.split(",") == ["monorarp", "monorarp.core", "monorarp.core.errors", "monorarp.pipeline",
+                                   "monorarp.pipeline.catalogue", "monorarp.pipeline.registry"]
 
 
 def test_no_component_module_imports_the_registry():

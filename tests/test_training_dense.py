@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from harness.world.scenario import parse_scenario
-from monorarp.detection import load_detector
+from monorarp.pipeline.detectors import load_detector
 from monorarp.detection.centernet import DENSE_MODEL, DenseCenterNetDetector
 from rendered_frame import first_frame
 from training.generate_data import densify, scenario_dict

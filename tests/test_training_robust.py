@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from monorarp.detection import load_detector
+from monorarp.pipeline.detectors import load_detector
 from monorarp.detection.centernet import DEFAULT_MODEL, ROBUST_MODEL, RobustCenterNetDetector
 from rendered_frame import first_frame
 from training import appearance

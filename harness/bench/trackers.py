@@ -254,7 +254,7 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
     if config.frames is not None and config.frames <= 0:
         raise BenchError(f"frames must be a positive integer, got {config.frames}")
     scenarios = _load_scenarios(config.scenarios, config.seeds, None if config.cap_frames else config.frames)
-    from monorarp.detection import build_detector
+    from monorarp.pipeline.detectors import build_detector
 
     check_weak_detections(config.pipeline.detector, trackers, "--weak-detections")
     cfg = config.pipeline.validate_names()

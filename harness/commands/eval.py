@@ -67,7 +67,7 @@ def _positive(name: str, v: float | None) -> None:
 def run_kitti(args: argparse.Namespace) -> int:
     from harness.kitti_eval.evaluate import LABELS_DETECTOR, KittiEvalOptions, dataset_summary, evaluate_kitti
     from harness.kitti_eval.reader import open_dataset
-    from monorarp.detection import is_model_path
+    from monorarp.detection.model_file import is_model_path
     from monorarp.pipeline.registry import get_factory
 
     _positive("--camera-height", args.camera_height)

@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     source = open_source(args.source, args.frames)
     detector = None
     if det_name is not None and det_name.lower() != "none":
-        from monorarp.detection import build_detector
+        from monorarp.pipeline.detectors import build_detector
         from monorarp.pipeline.runner import ComponentConfig
 
         detector = build_detector(ComponentConfig(name=det_name), source.camera)

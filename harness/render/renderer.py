@@ -37,7 +37,8 @@ import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
 
-from harness.render import effects, geometry, meshes, passes, road, shading, visibility  # noqa: E402
+from harness.render import effects, meshes, passes, road, shading, visibility  # noqa: E402
+from harness.world import geometry  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
 from harness.world.scenario import Scenario  # noqa: E402
 from harness.simulation.placement import road_plan, road_profile  # noqa: E402

@@ -119,7 +119,7 @@ def _camera_for_preflight(scenarios: list[dict]):
 
 def _inject_seeds(pipeline: dict, seed: int) -> dict:
     """Give every component whose factory declares ``uses_seed`` the run's seed, unless the spec set one."""
-    from monorarp.detection import is_model_path
+    from monorarp.detection.model_file import is_model_path
     from monorarp.pipeline.registry import get_factory, uses
 
     out = copy.deepcopy(pipeline)
@@ -133,7 +133,7 @@ def _inject_seeds(pipeline: dict, seed: int) -> dict:
 
 def check_components(spec: SweepSpec, spec_path: Path, scenarios: list[dict]) -> dict[str, dict]:
     """Each variant's pipeline mapping, after building it once (raises :class:`SweepSpecError`)."""
-    from monorarp.detection import is_model_path
+    from monorarp.detection.model_file import is_model_path
     from monorarp.pipeline.runner import Pipeline
 
     camera = _camera_for_preflight(scenarios)

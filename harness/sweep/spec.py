@@ -203,7 +203,7 @@ class Variant(_Model):
     def pipeline_config(self, spec_dir: Path) -> PipelineConfig:
         """This variant's :class:`PipelineConfig`; a relative ``.onnx`` detector path is made absolute
         against ``spec_dir`` (the spec file's folder)."""
-        from monorarp.detection import is_model_path
+        from monorarp.detection.model_file import is_model_path
 
         detector = self.detector
         if is_model_path(detector):

@@ -107,7 +107,7 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
 
 def _component(kind: str, option: str, name: str, kwargs: dict[str, Any] | None = None,
                check: bool = True) -> ComponentConfig:
-    from monorarp.detection import is_model_path
+    from monorarp.detection.model_file import is_model_path
 
     if check and not (kind == "detector" and is_model_path(name)):
         try:
@@ -122,7 +122,7 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
     options as in ``base``, default :class:`PipelineConfig`). Raises :class:`UserError` (one line naming
     the option) for an option that does not apply and, with ``check``, for an unknown name (without it,
     :meth:`Pipeline.from_config` refuses unknown names, for a command that checks its inputs first)."""
-    from monorarp.detection import is_centernet
+    from monorarp.pipeline.detectors import is_centernet
 
     cfg = base if base is not None else PipelineConfig()
     stages = getattr(args, "_pipeline_stages", ())

@@ -47,7 +47,7 @@ class ComponentConfig(BaseModel):
 class PipelineConfig(BaseModel):
     """Which component fills each stage: the one place of every stage's default. ``ego_speed``, ``warning``
     and ``horizon`` are optional (None = no such stage; no horizon stage = the calibrated horizon). The
-    detector is a registered name or an ``.onnx`` path (:func:`monorarp.detection.build_detector`)."""
+    detector is a registered name or an ``.onnx`` path (:func:`monorarp.pipeline.detectors.build_detector`)."""
 
     model_config = ConfigDict(extra="forbid")
     detector: ComponentConfig = ComponentConfig(name="centernet")
@@ -65,7 +65,7 @@ class PipelineConfig(BaseModel):
     def validate_names(self) -> "PipelineConfig":
         """Raise :class:`~monorarp.pipeline.registry.UnknownComponentError` (one line, naming the kind and the
         available names) for any unknown component name, before anything is built; returns ``self``."""
-        from monorarp.detection import is_model_path
+        from monorarp.detection.model_file import is_model_path
 
         for kind, comp in self.stages().items():
             if not (kind == "detector" and is_model_path(comp.name)):
@@ -155,7 +155,7 @@ class Pipeline:
         """
         cfg = config if isinstance(config, PipelineConfig) else PipelineConfig.model_validate(config)
         cfg.validate_names()   # unknown names fail before any model is loaded
-        from monorarp.detection import build_detector
+        from monorarp.pipeline.detectors import build_detector
 
         from monorarp.lanes.geometry import EgoSpeedError, EgoSpeedStageError
 

@@ -40,7 +40,7 @@ import numpy as np
 
 from monorarp.core.camera import CameraModel
 from monorarp.app.options import WARNING_THRESHOLD_S, default_pipeline_config
-from monorarp.detection import is_model_path
+from monorarp.detection.model_file import is_model_path
 from monorarp.core.errors import UserError
 from monorarp.app.io import JsonlWriter, atomic_output_dir, write_json_atomic
 from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
