@@ -10,7 +10,8 @@ import pytest
 
 from monorarp.pipeline import registry
 from monorarp.app.cli import build_parser, main
-from monorarp.app.options import (CLI_EGO_SPEED, WARNING_THRESHOLD_S, add_pipeline_options,
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
+from monorarp.app.options import (CLI_EGO_SPEED, add_pipeline_options,
                                      default_pipeline_config, pipeline_config)
 from monorarp.core.errors import UserError
 from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig
@@ -74,7 +75,7 @@ def test_defaults_identical_across_commands():
         assert cfg.tracker.name == PipelineConfig().tracker.name
         assert cfg.risk == PipelineConfig().risk and cfg.warning == PipelineConfig().warning
     assert parse("eval", "kitti", "d", "--out", "x").detector == PipelineConfig().detector.name
-    assert parse("run", "s.yaml").warning_threshold == WARNING_THRESHOLD_S
+    assert parse("run", "s.yaml").warning_threshold == TTC_CUE_THRESHOLD_S
 
 
 def test_onnx_path_is_the_detector_name_and_builds(tmp_path):

@@ -11,7 +11,8 @@ import argparse
 from pathlib import Path
 
 from harness.commands.detector_args import add_oracle_arguments, pipeline_config
-from monorarp.app.options import WARNING_THRESHOLD_S, add_pipeline_options
+from monorarp.app.options import add_pipeline_options
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.core.errors import UserError
 
 
@@ -38,9 +39,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="output directory (default: runs/<scenario name>; a previous run there is replaced)")
     p.add_argument("--threaded", action="store_true", help="one thread per stage (as in the paper)")
     p.add_argument("--no-video", action="store_true", help="write neither annotated.mp4 nor frames.mp4")
-    p.add_argument("--warning-threshold", type=float, default=WARNING_THRESHOLD_S, metavar="S",
+    p.add_argument("--warning-threshold", type=float, default=TTC_CUE_THRESHOLD_S, metavar="S",
                    help="scoring and display: TTC below which a frame counts as a warning, s "
-                        f"(default {WARNING_THRESHOLD_S}; the warning stage keeps its own threshold)")
+                        f"(default {TTC_CUE_THRESHOLD_S}; the warning stage keeps its own threshold)")
     p.set_defaults(func=run)
 
 

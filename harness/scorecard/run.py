@@ -32,7 +32,8 @@ from harness.sweep.orchestrate import execute, finished, prepare_out_dir
 from harness.sweep.spec import Variant, run_mapping
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
 from monorarp.core.readers import read_json_or_none
-from monorarp.app.options import CLI_EGO_SPEED, WARNING_THRESHOLD_S
+from monorarp.app.options import CLI_EGO_SPEED
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.pipeline.runner import PipelineConfig
 
 PROTOCOL_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "fcw"
@@ -123,7 +124,7 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
                              scenario_key=trial.suite, seed=int(scenario["seed"]), grid=dict(trial.params),
                              variant=variant.name, scenario=scenario,
                              pipeline=_inject_seeds(built[key], int(scenario["seed"])), frames=opts.frames,
-                             warning_threshold_s=WARNING_THRESHOLD_S))
+                             warning_threshold_s=TTC_CUE_THRESHOLD_S))
     ids = [t.id for t in tasks]
     if len(set(ids)) != len(ids):
         dup = sorted({i for i in ids if ids.count(i) > 1})[0]

@@ -10,7 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from monorarp.app.options import WARNING_THRESHOLD_S
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 
 #: Longitudinal range bins of the ground-truth distance ``d_long`` (m), [lo, hi).
 RANGE_BINS: dict[str, tuple[float, float]] = {
@@ -108,14 +108,14 @@ def precision_recall(tp: int, n_pred: int, n_true: int) -> dict[str, float | int
     return {"precision": p, "recall": r, "f1": f1, "tp": tp, "fp": n_pred - tp, "fn": n_true - tp}
 
 
-def warnings_from_ttc(ttc: Sequence[float | None] | np.ndarray, threshold_s: float = WARNING_THRESHOLD_S) -> np.ndarray:
+def warnings_from_ttc(ttc: Sequence[float | None] | np.ndarray, threshold_s: float = TTC_CUE_THRESHOLD_S) -> np.ndarray:
     """Warning flags: TTC known (not None/NaN) and strictly below ``threshold_s``."""
     t = np.array([np.nan if v is None else v for v in ttc], dtype=float)
     with np.errstate(invalid="ignore"):
         return np.isfinite(t) & (t < threshold_s)
 
 
-def warning_classification(ttc_est, ttc_gt, threshold_s: float = WARNING_THRESHOLD_S) -> dict[str, float | int]:
+def warning_classification(ttc_est, ttc_gt, threshold_s: float = TTC_CUE_THRESHOLD_S) -> dict[str, float | int]:
     """Precision/recall of estimated TTC warnings against ground-truth ones, pair by pair.
 
     ``ttc_est``/``ttc_gt``: the TTC (s, None/NaN = no collision within the horizon)

@@ -23,7 +23,7 @@ from harness.scoring.warnings import warning_metrics
 from harness.world.truth import FrameTruth, ObjectTruth
 from monorarp.core.camera import CameraModel
 from monorarp.app.io import write_json_atomic
-from monorarp.app.options import WARNING_THRESHOLD_S
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.core.types import FrameResult, RiskEstimate
 
 NAN = float("nan")
@@ -38,7 +38,7 @@ STAGES = ("detector", "ego_speed", "tracker", "state", "risk", "warning", "total
 
 @dataclass(frozen=True)
 class EvalConfig:
-    warning_threshold_s: float = WARNING_THRESHOLD_S
+    warning_threshold_s: float = TTC_CUE_THRESHOLD_S
     min_iou: float = MIN_IOU
     min_visibility: float = 0.3
     max_range_m: float = 80.0

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from monorarp.app.options import WARNING_THRESHOLD_S
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 
 DEFAULT_HEADLINE = ("distance.rel_err_median", "distance.abs_err_median_m", "rel_velocity.abs_err_median_mps",
                     "tracking.mota", "tracking.idf1", "tracking.id_switches", "ttc.warning.precision",
@@ -272,7 +272,7 @@ def runs_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Se
 
 
 def render_report(rows: Sequence[Mapping], runs_dir: Path, *, name: str, spec_path: str, grid_keys: Sequence[str],
-                  headline: Sequence[str] = (), threshold_s: float = WARNING_THRESHOLD_S) -> str:
+                  headline: Sequence[str] = (), threshold_s: float = TTC_CUE_THRESHOLD_S) -> str:
     """The whole HTML page as a string."""
     import matplotlib
 

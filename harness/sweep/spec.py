@@ -32,7 +32,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from harness.world.config_io import Seed, validate_config
 from harness.world.scenario import Scenario
-from monorarp.app.options import WARNING_THRESHOLD_S
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.core.errors import UserError
 from monorarp.core.readers import read_yaml
 from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
@@ -243,7 +243,7 @@ class SweepSpec(_Model):
     grid: dict[str, list[GridValue]] = {}
     overrides: dict[str, Any] = {}
     frames: int | None = Field(None, gt=0)
-    warning_threshold_s: float = Field(WARNING_THRESHOLD_S, gt=0, le=30)
+    warning_threshold_s: float = Field(TTC_CUE_THRESHOLD_S, gt=0, le=30)
     metrics: list[str] = []
     variants: list[Variant] = Field(default_factory=lambda: [Variant(name="default")], min_length=1)
 

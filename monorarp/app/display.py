@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from monorarp.app.options import WARNING_THRESHOLD_S
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.core.types import Box, FrameResult, Track
 
 RED, ORANGE, YELLOW, GREEN = (40, 40, 230), (0, 140, 255), (0, 220, 240), (60, 200, 60)
@@ -44,7 +44,7 @@ FONT = cv2.FONT_HERSHEY_SIMPLEX
 Rect = tuple[int, int, int, int]
 
 
-def ttc_colour(ttc: float | None, warning_s: float = WARNING_THRESHOLD_S) -> tuple[int, int, int]:
+def ttc_colour(ttc: float | None, warning_s: float = TTC_CUE_THRESHOLD_S) -> tuple[int, int, int]:
     """BGR colour of a box with time to collision ``ttc`` (s; None = no collision course)."""
     if ttc is None or not np.isfinite(ttc):
         return GREEN
@@ -268,7 +268,7 @@ def _priority(tr: Track, result: FrameResult) -> tuple:
             st.d_y if st is not None else np.inf, -tr.box[3], tr.id)
 
 
-def layout_frame(shape: tuple[int, ...], result: FrameResult, *, warning_s: float = WARNING_THRESHOLD_S,
+def layout_frame(shape: tuple[int, ...], result: FrameResult, *, warning_s: float = TTC_CUE_THRESHOLD_S,
                  ego_speed: float | None = None) -> FrameLayout:
     """Where everything of :func:`draw_frame` goes on an image of ``shape`` (H, W[, 3]); draws nothing."""
     h, w = int(shape[0]), int(shape[1])
@@ -350,7 +350,7 @@ def _text(img: np.ndarray, text: str, org: tuple[int, int], scale: float, colour
     return y2 - 1 - y1
 
 
-def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warning_s: float = WARNING_THRESHOLD_S,
+def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warning_s: float = TTC_CUE_THRESHOLD_S,
                     kind: str = "inverse_ttc") -> None:
     """Vertical gauge at the right edge: fill = risk / full_scale.
 
@@ -418,7 +418,7 @@ def _draw_warning(img: np.ndarray, layout: FrameLayout, result: FrameResult, box
                     _thick(small), cv2.LINE_AA)
 
 
-def draw_frame(image: np.ndarray, result: FrameResult, *, warning_s: float = WARNING_THRESHOLD_S, risk_full_scale: float = 1.0,
+def draw_frame(image: np.ndarray, result: FrameResult, *, warning_s: float = TTC_CUE_THRESHOLD_S, risk_full_scale: float = 1.0,
                ego_speed: float | None = None, truth_boxes: Sequence[Box] = (), copy: bool = True) -> np.ndarray:
     """The annotated frame for ``result`` drawn on ``image`` (BGR uint8, H x W x 3).
 

@@ -10,8 +10,8 @@ command-line defaults stated here because they differ from a bare config:
 * ``--velocity`` (the geometric state estimator's) is written into the config, default ``kalman``;
 * ``--horizon calibrated`` (the default) means no horizon stage.
 
-:data:`WARNING_THRESHOLD_S` is the TTC (s) below which the display and the scoring mark a warning; the
-warning stage has its own threshold (:data:`monorarp.warning.fcw.DEFAULT_TTC_THRESHOLD_S`).
+The TTC thresholds (the warning stage's alert, the paper's per-object cue) are defined once, in
+:mod:`monorarp.warning.thresholds`.
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ VELOCITIES = ("kalman", "difference")
 DEFAULT_VELOCITY = "kalman"
 CALIBRATED = "calibrated"               # --horizon: the calibration's horizon, no horizon stage
 NONE = "none"                           # --ego-speed: no ego-speed stage
-WARNING_THRESHOLD_S = 2.0
 
 
 class _RegistryHelp(str):

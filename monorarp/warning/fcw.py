@@ -20,9 +20,10 @@ from monorarp.core.camera import CameraModel
 from monorarp.risk.estimators import object_extents
 from monorarp.risk.ttc import ego_extent, time_to_collision
 from monorarp.core.types import ObjectState, RiskEstimate, WarningState
+from monorarp.warning.thresholds import FCW_THRESHOLD_S
 
 #: Default warning threshold (s): see :class:`ForwardCollisionWarning`.
-DEFAULT_TTC_THRESHOLD_S = 3.0
+DEFAULT_TTC_THRESHOLD_S = FCW_THRESHOLD_S
 
 
 def significant_lateral_velocity(v_x: np.ndarray, v_x_std: np.ndarray, sigmas: float) -> np.ndarray:

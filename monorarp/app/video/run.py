@@ -39,7 +39,7 @@ import cv2
 import numpy as np
 
 from monorarp.core.camera import CameraModel
-from monorarp.app.options import WARNING_THRESHOLD_S, default_pipeline_config
+from monorarp.app.options import default_pipeline_config
 from monorarp.detection.model_file import is_model_path
 from monorarp.core.errors import UserError
 from monorarp.app.io import JsonlWriter, atomic_output_dir, write_json_atomic
@@ -47,6 +47,7 @@ from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig, 
 from monorarp.pipeline.registry import get_factory, uses
 from monorarp.core.types import Frame, FrameResult
 from monorarp.app.video.source import VideoInfo, VideoSource
+from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 
 OUTPUT_NAMES = ("predictions.jsonl", "annotated.mp4", "run.json")
 FALLBACK_FPS = 30.0   # annotated video rate when the source reports none (e.g. some webcams)
@@ -67,7 +68,7 @@ class VideoRunOptions:
     max_frames: int | None = None
     write_video: bool = True
     display: bool = False
-    warning_s: float = WARNING_THRESHOLD_S   # display: TTC (s) drawn as a warning
+    warning_s: float = TTC_CUE_THRESHOLD_S   # display: TTC (s) drawn as a warning
 
 
 @dataclass(frozen=True)
