@@ -29,7 +29,8 @@ from harness.run.runner import with_scenario_markings  # noqa: E402
 from harness.world.scenario import load_scenario  # noqa: E402
 from harness.simulation.simulator import simulate  # noqa: E402
 from monorarp.detection.bottom_edge import refine_bottom  # noqa: E402
-from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig  # noqa: E402
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig  # noqa: E402
+from monorarp.pipeline.runner import Pipeline  # noqa: E402
 from monorarp.core.types import Frame  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -28,11 +28,11 @@ from harness.bench.script import run_script
 from harness.world.ground_truth import frame_truth
 from harness.render.renderer import Renderer
 from harness.world.scenario import load_scenario_dict, parse_scenario
-from harness.scoring.evaluate import out_of_range
+from harness.scoring.rules import out_of_range
 from harness.scoring.match import MIN_IOU, as_boxes, split_ignored
 from harness.simulation.simulator import simulate
 from monorarp.pipeline.detectors import build_detector
-from monorarp.pipeline.runner import ComponentConfig
+from monorarp.pipeline.config import ComponentConfig
 
 CONDITIONS = {
     "day": None,

@@ -32,7 +32,7 @@ from harness.commands.bench import parse_seeds
 from harness.run.frame_cache import FrameCache, default_dir
 from harness.run.runner import run_scenario
 from harness.world.scenario import load_scenario
-from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 #: scenario -> MOTA and IDF1 it must reach (dense_traffic: the target; the others: what they have)

@@ -140,7 +140,7 @@ def make_inputs(work: Path) -> None:
     from monorarp.pipeline.detectors import build_detector
     from harness.export.exporter import export
     from harness.export.source import open_source
-    from monorarp.pipeline.runner import ComponentConfig
+    from monorarp.pipeline.config import ComponentConfig
 
     if work.exists():
         shutil.rmtree(work)

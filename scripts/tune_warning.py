@@ -33,7 +33,8 @@ from harness.scorecard.run import ScorecardOptions, build_tasks
 from harness.scorecard.score import trial_passed
 from harness.scoring.warnings import warning_metrics
 from monorarp.pipeline import registry
-from monorarp.pipeline.runner import Pipeline, PipelineConfig, tracker_input
+from monorarp.pipeline.config import PipelineConfig
+from monorarp.pipeline.runner import Pipeline, tracker_input
 from monorarp.core.types import FrameResult, RiskEstimate
 
 _NO_IMAGE = np.zeros((1, 1), dtype=np.uint8)   # the recorded registration needs no frame

@@ -15,7 +15,7 @@ from harness.run.oracle import OracleDetector
 from monorarp.pipeline import registry
 from monorarp.app.cli import main
 from monorarp.core.errors import UserError
-from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig
 from monorarp.tracking.particle import ParticleTracker
 
 N_FRAMES = 8

@@ -15,7 +15,7 @@ from harness.world.ground_truth import frame_truth
 from harness.world.geometry import vehicle_pose_world
 from harness.render.meshes import vehicle_trimesh
 from harness.render.renderer import Renderer
-from harness.render.renderer import SKY_RGB
+from harness.render.shading import SKY_RGB
 from harness.world.scenario import ScenarioError, parse_scenario
 from harness.world.state import VehicleState, WorldState
 from monorarp.core.camera import CameraModel

@@ -14,7 +14,8 @@ from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.app.options import (CLI_EGO_SPEED, add_pipeline_options,
                                      default_pipeline_config, pipeline_config)
 from monorarp.core.errors import UserError
-from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig
+from monorarp.pipeline.runner import Pipeline
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / "monorarp" / "models" / "centernet_vehicle.onnx"

@@ -13,7 +13,7 @@ from harness.world.scenario import parse_scenario
 from harness.run.detection_memo import DetectionMemo, ReplayingDetector, detector_identity
 from monorarp.core.camera import CameraModel
 from monorarp.detection.centernet import CenterNetDetector
-from monorarp.pipeline.runner import ComponentConfig
+from monorarp.pipeline.config import ComponentConfig
 from monorarp.core.types import Detection, FrameResult
 from test_render_cache import SCENARIO as TINY
 

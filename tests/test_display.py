@@ -195,3 +195,33 @@ def test_drawing_is_deterministic_and_independent_of_track_order():
     assert np.array_equal(first, draw_frame(img, res))
     shuffled = replace(res, tracks=list(reversed(res.tracks)))
     assert np.array_equal(first, draw_frame(img, shuffled))
+
+
+def test_the_warned_object_shows_the_warning_stages_ttc_the_others_the_cue():
+    res = _scene(640, 360, np.random.default_rng(4), cluster=3, active=True)
+    res = replace(res, risk=replace(res.risk, ttc={**res.risk.ttc, 7: 2.6, 100: 1.3}),   # the risk's own TTCs
+                  warning=replace(res.warning, ttc=1.1))                                 # the warning's, for 7
+    layout = layout_frame((360, 640, 3), res)
+    labels = {lab.track_id: lab for lab in layout.labels}
+    assert labels[7].lines[0] == "#7 FCW TTC 1.1s" and labels[7].colour == RED       # the banner's number, red
+    assert labels[100].lines[0].endswith("TTC 1.3s") and "FCW" not in labels[100].lines[0]
+    assert labels[100].colour == RED                                                  # the cue: 1.3 s < 2 s
+    held = layout_frame((360, 640, 3), replace(res, warning=replace(res.warning, ttc=None)))
+    assert next(lab for lab in held.labels if lab.track_id == 7).lines[0] == "#7 FCW"   # hold time: no TTC
+    idle = layout_frame((360, 640, 3), replace(res, warning=WarningState()))
+    seven = next(lab for lab in idle.labels if lab.track_id == 7)
+    assert seven.lines[0] == "#7 TTC 2.6s" and seven.colour == ORANGE                   # no alert: the cue
+
+
+def test_the_layout_modules_do_not_draw():
+    import ast
+    from pathlib import Path
+
+    import monorarp.app.display as display
+
+    root = Path(display.__file__).parent
+    for name in ("content", "placement", "layout", "style"):
+        tree = ast.parse((root / f"{name}.py").read_text())
+        imported = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names} \
+            | {(n.module or "").split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+        assert "cv2" not in imported, name

@@ -24,7 +24,7 @@ import yaml
 
 from harness.export import geometry as geo
 from harness.export.mot import mot_to_box
-from harness.scoring.evaluate import EvalConfig, counted_mask
+from harness.scoring.rules import EvalConfig, counted_mask
 from harness.world.truth import FrameTruth
 from monorarp.core.camera import CameraModel
 from monorarp.app.cli import main
@@ -317,7 +317,10 @@ def test_bad_input_one_line_exit_2_nothing_written(exported, tmp_path, capsys):
     ]
     for args, needle in cases:
         out = tmp_path / "out"
-        rc = main(["export", *args, "--out", str(out)])
+        try:
+            rc = main(["export", *args, "--out", str(out)])
+        except SystemExit as e:   # refused while the command line is parsed
+            rc = e.code
         err = capsys.readouterr().err
         assert rc == 2, (args, err)
         assert needle in err and len(err.strip().splitlines()) == 1, (args, err)

@@ -31,7 +31,7 @@ import pytest
 import yaml
 
 from harness.run.outputs import OUTPUT_NAMES
-from harness.sweep.summary import deterministic_metrics
+from harness.check.metrics import deterministic_metrics
 from monorarp.app.cli import main
 
 SCENARIO = {

@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from monorarp.core.camera import CameraModel
-from monorarp.horizon.ground_profile import GroundProfile, contact_ground, ridge_peak, width_distance
+from monorarp.core.ground_profile import GroundProfile
+from monorarp.horizon.ground_profile import ridge_peak
+from monorarp.state.ground_contact import contact_ground, width_distance
 from monorarp.horizon.stages import LaneWidthRanging
 from monorarp.state.estimator import StateEstimator
 from monorarp.core.types import Track

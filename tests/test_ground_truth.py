@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from harness.world.ground_truth import frame_truth
-from harness.render.meshes import vehicle_layout
+from harness.world.vehicles import vehicle_layout
 from harness.render.renderer import Renderer
 from harness.world.scenario import parse_scenario
 from harness.world.truth import FrameTruth

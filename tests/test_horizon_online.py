@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 
 from harness.scoring import algo
-from harness.scoring.evaluate import horizon_metrics
+from harness.scoring.horizon import horizon_metrics
 from harness.world.truth import CameraTruth, EgoTruth, FrameTruth
 from monorarp.core.camera import CameraModel
 from monorarp.app.cli import main
 from monorarp.horizon.stages import CalibratedHorizon, OnlineHorizon, pitch_std_px, row_std_px
-from monorarp.pipeline.runner import Pipeline, PipelineConfig, run_sync, run_threaded
+from monorarp.pipeline.config import PipelineConfig
+from monorarp.pipeline.runner import Pipeline, run_sync, run_threaded
 from monorarp.risk.estimators import ttc_std
 from monorarp.state.estimator import StateEstimator
 from monorarp.state.geometry import box_distance
@@ -105,7 +106,7 @@ def test_online_horizon_holds_then_falls_back():
 # ------------------------------------------------------------------ equation 3 with the current horizon
 def _box_at(camera: CameraModel, d_rear: float, est: StateEstimator) -> np.ndarray:
     """A box whose bottom edge is where ``camera`` sees the contact line of a rear face at ``d_rear``."""
-    y = d_rear + est.contact_offset_m
+    y = d_rear + est.config.contact_offset_m
     v = camera.project_ego(np.array([0.0, y, -camera.height_m]))[1]
     return np.array([[300.0, v - 30.0, 340.0, v]])
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from monorarp.core.camera import CameraModel
-from monorarp.pipeline.runner import Pipeline, PipelineConfig, run_sync, run_threaded
+from monorarp.pipeline.config import PipelineConfig
+from monorarp.pipeline.runner import Pipeline, run_sync, run_threaded
 from monorarp.pipeline import registry
 from monorarp.risk.estimators import TTCRiskEstimator
 from monorarp.state.estimator import StateEstimator
@@ -110,7 +111,7 @@ def test_from_config_builds_through_registry(request):
     cfg = PipelineConfig.model_validate({"detector": {"name": "_test_fake"},
                                          "state": {"name": "geometric", "kwargs": {"velocity": "difference"}}})
     p = Pipeline.from_config(cfg, CAM)
-    assert isinstance(p.tracker, ParticleTracker) and p.state.velocity == "difference"
+    assert isinstance(p.tracker, ParticleTracker) and p.state.config.velocity == "difference"
     assert isinstance(p.risk, TTCRiskEstimator)
     r = p.process(next(frames(1)))
     assert r.index == 0 and len(r.detections) == 2

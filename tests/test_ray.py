@@ -13,7 +13,7 @@ import yaml
 
 pytest.importorskip("ray", reason="Ray is not installed (optional extra: pip install '.[ray]')")
 
-from harness.sweep.summary import deterministic_metrics  # noqa: E402
+from harness.check.metrics import deterministic_metrics  # noqa: E402
 from monorarp.app.cli import main  # noqa: E402
 
 SCENARIO = {

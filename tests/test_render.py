@@ -12,7 +12,7 @@ import pytest
 from harness.world.geometry import vehicle_pose_world
 from harness.render.meshes import vehicle_trimesh
 from harness.render.renderer import Renderer
-from harness.render.renderer import SKY_RGB
+from harness.render.shading import SKY_RGB
 from harness.world.scenario import parse_scenario
 from harness.world.state import VehicleState, WorldState
 

@@ -15,7 +15,7 @@ import yaml
 import harness.run.frame_feed
 from harness.run.frame_cache import FRAMES, MANIFEST, TRUTH, FrameCache
 from harness.world.scenario import parse_scenario
-from harness.sweep.executors import RenderOnceQueue
+from harness.sweep.execution import RenderOnceQueue
 from harness.sweep.expand import load_and_expand
 from monorarp.app.cli import main
 

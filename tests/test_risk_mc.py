@@ -481,7 +481,7 @@ def test_numba_records_the_same_trajectories():
     _, states, v_e, _, _ = _parity_scenes()[1]
     scene, params = est.build(states, v_e)
     lo, hi = est._lanes
-    cfg = replace(est.config, lane_min=lo, lane_max=hi)
+    cfg = replace(est.rollout_config, lane_min=lo, lane_max=hi)
     a, b = simulate(scene, params, cfg, record=True), simulate_numba(scene, params, cfg, record=True)
     assert a.x.shape == b.x.shape == (cfg.n_steps + 1, 60, len(states) + 1)
     for f in ("x", "y", "v"):
@@ -546,7 +546,7 @@ def test_constant_speed_ego_holds_speed_and_lane_while_others_react(backend):
     scene, params = est.build(states, 22.0)
     np.testing.assert_array_equal(scene.v[:, 0], 22.0)              # no ego-speed noise
     lo, hi = est._lanes
-    cfg = replace(est.config, lane_min=lo, lane_max=hi)
+    cfg = replace(est.rollout_config, lane_min=lo, lane_max=hi)
     res = _sim(backend)(scene, params, cfg, record=True)
     t = np.arange(cfg.n_steps + 1) * cfg.dt
     np.testing.assert_array_equal(res.v[:, :, 0], 22.0)
@@ -587,7 +587,7 @@ def test_numba_and_numpy_backends_agree_with_constant_speed_ego():
                          ego_model="constant_speed")
     _, states, v_e, _, _ = _parity_scenes()[1]
     scene, params = est.build(states, v_e)
-    cfg = replace(est.config, lane_min=est._lanes[0], lane_max=est._lanes[1])
+    cfg = replace(est.rollout_config, lane_min=est._lanes[0], lane_max=est._lanes[1])
     ta, tb = simulate(scene, params, cfg, record=True), simulate_numba(scene, params, cfg, record=True)
     for f in ("x", "y", "v"):
         np.testing.assert_allclose(getattr(tb, f), getattr(ta, f), rtol=0, atol=1e-6)
@@ -604,3 +604,32 @@ def test_ego_model_option_is_validated():
         MonteCarloRisk(n_rollouts=8, backend="numpy", ego_model=None)
     with pytest.raises(ValueError, match="ego_model"):
         RolloutConfig(ego_model="cv")
+
+
+# ------------------------------------------------------------------------------- settings
+def test_settings_are_one_config_and_keyword_overrides_of_it():
+    import inspect
+
+    from monorarp.core.camera import CameraModel
+    from monorarp.risk.monte_carlo.config import MonteCarloConfig, MonteCarloConfigError
+
+    base = MonteCarloConfig(n_rollouts=40, seed=5, backend="numpy", dtype="float64")
+    est = MonteCarloRisk(config=base, horizon_s=4.0)
+    assert est.config == base.model_copy(update={"horizon_s": 4.0}) and est.rollout_config.horizon_s == 4.0
+    states = {1: _state(1, 0.0, 20.0, v_y=-6.0), 2: _state(2, 3.7, 12.0, v_y=-2.0)}
+    same = MonteCarloRisk(n_rollouts=40, seed=5, backend="numpy", dtype="float64", horizon_s=4.0)
+    assert est.assess(states, 0.0, 25.0) == same.assess(states, 0.0, 25.0)
+    cam = replace(CameraModel.from_fov(320, 180, 60.0, 1.3), forward_offset_m=1.5, lateral_offset_m=-0.2)
+    est = MonteCarloRisk(camera=cam, n_rollouts=8, backend="numpy", camera_forward_offset_m=9.0)
+    assert (est.config.camera_forward_offset_m, est.config.camera_lateral_offset_m) == (1.5, -0.2)  # the camera wins
+    assert MonteCarloRisk(n_rollouts=8, backend="numpy", noise={"lateral_m": 0.0}).noise.lateral_m == 0.0
+    with pytest.raises(MonteCarloConfigError, match="unknown monte_carlo risk setting 'n_rollout'"):
+        MonteCarloRisk(n_rollout=8)
+    with pytest.raises(MonteCarloConfigError, match="n_rollouts: .*greater than or equal to 1, got 0"):
+        MonteCarloRisk(n_rollouts=0)
+    with pytest.raises(MonteCarloConfigError, match="dt: .*greater than 0"):
+        MonteCarloRisk(n_rollouts=8, backend="numpy", dt=0.0)
+    with pytest.raises(MonteCarloConfigError, match="noise: unknown noise field"):
+        MonteCarloRisk(n_rollouts=8, backend="numpy", noise={"position": 1.0})
+    params = inspect.signature(MonteCarloRisk).parameters          # what the registry and help() read
+    assert list(params)[:2] == ["camera", "config"] and set(MonteCarloConfig.model_fields) <= set(params)

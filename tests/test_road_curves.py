@@ -18,7 +18,7 @@ from harness.render.renderer import Renderer
 from harness.world.road_plan import RoadPlan, path_length
 from harness.world.road_profile import RoadProfile
 from harness.world.scenario import ScenarioError, parse_scenario
-from harness.simulation.placement import EGO_START_X_M, road_plan
+from harness.world.road import EGO_START_X_M, road_plan
 from harness.world.state import VehicleState, WorldState
 from monorarp.app.cli import main
 from silhouette import assert_silhouette, rot_ego_to_cv

@@ -13,11 +13,12 @@ import pytest
 
 from harness.world.ground_truth import frame_truth
 from harness.world.geometry import vehicle_corners_ego
-from harness.render.meshes import vehicle_height, vehicle_trimesh
+from harness.render.meshes import vehicle_trimesh
+from harness.world.vehicles import vehicle_height
 from harness.render.renderer import Renderer
 from harness.world.road_profile import RoadProfile
 from harness.world.scenario import ScenarioError, parse_scenario
-from harness.simulation.placement import EGO_START_X_M, road_profile
+from harness.world.road import EGO_START_X_M, road_profile
 from harness.world.state import VehicleState, WorldState
 from monorarp.app.cli import main
 from silhouette import assert_silhouette
@@ -203,7 +204,7 @@ def test_grade_gain_is_the_tilted_plane_derivative_and_widens_d_y_std():
     cam = CameraModel.from_fov(640, 360, 70.0, 1.3, math.radians(2.0))
     est = StateEstimator(cam, grade_std=0.02)
     d_y = np.array([10.0, 40.0, 80.0])
-    Y0 = d_y + est.contact_offset_m
+    Y0 = d_y + est.config.contact_offset_m
     tan_a = cam.height_m / Y0                                          # the flat reading's ray
     dg = 1e-6
     numeric = (cam.height_m / (tan_a - dg) - cam.height_m / (tan_a + dg)) / (2 * dg)   # |dY/dg| on z = g y

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from harness.render.meshes import vehicle_layout
+from harness.world.vehicles import vehicle_layout
 from harness.run.runner import run_scenario
 from harness.run.outputs import OUTPUT_NAMES
 from harness.world.scenario import parse_scenario
@@ -163,7 +163,11 @@ def scenario_file(tmp_path):
 ])
 def test_bad_input_exits_2_and_writes_nothing(scenario_file, tmp_path, capsys, extra, message):
     out = tmp_path / "out"
-    assert main(["run", str(scenario_file), "--out", str(out), *extra]) == 2
+    try:
+        rc = main(["run", str(scenario_file), "--out", str(out), *extra])
+    except SystemExit as e:   # refused while the command line is parsed
+        rc = e.code
+    assert rc == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1
     assert not out.exists()

@@ -1,4 +1,4 @@
-"""The registered scale fused into the range filter (StateEstimator.fusion_sigmas): the measurement model
+"""The registered scale fused into the range filter (StateConfig.fusion_sigmas): the measurement model
 against constant-acceleration kinematics, the gate, and the velocity of a textured vehicle approaching
 with a noisy box bottom edge against the truth."""
 
@@ -7,15 +7,14 @@ import pytest
 
 from monorarp.core.camera import CameraModel
 from monorarp.state.estimator import StateEstimator
+from monorarp.state.filters import fuse_scale
 from monorarp.core.types import Track
 from tests.test_scale_change import scaled, texture
 
 DT = 1.0 / 15.0
 
 
-@pytest.fixture
-def est():
-    return StateEstimator(CameraModel.from_fov(640, 360, 60.0, 1.3), fusion_sigmas=3.0)
+GATE = 3.0        # fusion_sigmas
 
 
 def one_track(d, v, a, P=None):
@@ -26,20 +25,20 @@ def one_track(d, v, a, P=None):
     return x, P
 
 
-def test_the_exact_scale_of_the_true_state_changes_nothing(est):
+def test_the_exact_scale_of_the_true_state_changes_nothing():
     d, v, a = 20.0, -5.0, -3.0
     d_prev = d - v * DT + a * DT * DT / 2          # constant acceleration, integrated one frame back
     x, P = one_track(d, v, a)
-    xu, Pu = est._fuse_scale(x, P, np.array([d_prev / d]), np.array([1e-3]), np.array([DT]), np.array([True]))
+    xu, Pu = fuse_scale(x, P, np.array([d_prev / d]), np.array([1e-3]), np.array([DT]), np.array([True]), GATE)
     np.testing.assert_allclose(xu, x, atol=1e-12)
     assert Pu[0, 1, 1, 1] < P[0, 1, 1, 1]          # but the velocity is known better
 
 
-def test_a_wrong_velocity_moves_by_the_kalman_gain(est):
+def test_a_wrong_velocity_moves_by_the_kalman_gain():
     d, v_true, v_wrong = 20.0, -5.0, -3.0
     s, s_std = (d - v_true * DT) / d, 2e-3
     x, P = one_track(d, v_wrong, 0.0)
-    xu, _ = est._fuse_scale(x, P, np.array([s]), np.array([s_std]), np.array([DT]), np.array([True]))
+    xu, _ = fuse_scale(x, P, np.array([s]), np.array([s_std]), np.array([DT]), np.array([True]), GATE)
     h = np.array([s - 1.0, DT, -DT * DT / 2])
     gain = P[0, 1] @ h / (h @ P[0, 1] @ h + (d * s_std) ** 2)
     np.testing.assert_allclose(xu[0, 1], x[0, 1] + gain * (0.0 - h @ x[0, 1]))
@@ -47,11 +46,11 @@ def test_a_wrong_velocity_moves_by_the_kalman_gain(est):
     np.testing.assert_array_equal(xu[0, 0], x[0, 0])          # the lateral axis is untouched
 
 
-def test_a_scale_beyond_the_gate_or_unusable_is_not_fused(est):
+def test_a_scale_beyond_the_gate_or_unusable_is_not_fused():
     x, P = one_track(20.0, 0.0, 0.0, np.eye(3)[None, None].repeat(2, axis=1) * 0.01)
     far_off = np.array([1.2])                         # 20 % growth in a frame: 60 m/s at 20 m
     for scale, usable in ((far_off, True), (np.array([1.01]), False), (np.array([np.nan]), True)):
-        xu, Pu = est._fuse_scale(x, P, scale, np.array([1e-3]), np.array([DT]), np.array([usable]))
+        xu, Pu = fuse_scale(x, P, scale, np.array([1e-3]), np.array([DT]), np.array([usable]), GATE)
         np.testing.assert_array_equal(xu, x)
         np.testing.assert_array_equal(Pu, P)
 
@@ -74,7 +73,7 @@ def approach_errors(fusion_sigmas, seed=0, frames=30, d0=25.0, v=-6.0, bottom_st
     for k in range(frames):
         d = d0 + v * k * DT
         s = d0 / d
-        row = camera.cy + camera.height_m * camera.fy / (d + est.contact_offset_m) + rng.normal(0.0, bottom_std_px)
+        row = camera.cy + camera.height_m * camera.fy / (d + est.config.contact_offset_m) + rng.normal(0.0, bottom_std_px)
         half = camera.fx * 1.8 / d / 2
         top = camera.cy - s * 40.0
         img = scaled(base, s, centre=(320.0, camera.cy))

@@ -55,7 +55,10 @@ BAD = [
 
 
 def _run(capsys, args):
-    rc = main(args)
+    try:
+        rc = main(args)
+    except SystemExit as e:   # refused while the command line is parsed
+        rc = e.code
     err = capsys.readouterr().err
     return rc, err
 

@@ -271,7 +271,7 @@ def test_the_scorecard_says_how_many_false_alarms_were_for_a_braking_vehicle():
 
 
 @pytest.mark.parametrize("argv, needle", [
-    # checked at parse time, before anything else (--frames 0: the request fails fast without the limit)
+    # checked while parsing, in command-line order (--frames 0 after it: the request fails fast without the limit)
     (["--suite", "nhtsa", "--trials", "1001", "--frames", "0"], "--trials: must be 1..1000, got 1001"),
     (["--protocol", str(FCW)], f"--protocol {FCW}: is a directory"),
     (["--protocol", str(FCW / "ci.yaml"), "--protocol", str(FCW / ".." / "fcw" / "ci.yaml")], "ci.yaml: given twice"),
@@ -281,7 +281,11 @@ def test_cli_bad_options_one_line_nothing_written(tmp_path, capsys, argv, needle
     from monorarp.app.cli import main
 
     out = tmp_path / "out"
-    assert main(["scorecard", *argv, "--out", str(out)]) == 2
+    try:
+        rc = main(["scorecard", *argv, "--out", str(out)])
+    except SystemExit as e:   # refused while the command line is parsed
+        rc = e.code
+    assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0], err
     assert not out.exists()

@@ -63,7 +63,7 @@ def test_split_ignored_cover_and_range_rules():
 
 
 def test_range_filter_uses_the_camera_ground_distance():
-    from harness.scoring.evaluate import out_of_range
+    from harness.scoring.rules import out_of_range
 
     cam = CameraModel.from_fov(640, 360, 70.0, 1.3, pitch_rad=math.radians(2))
     rows = [cam.project_ego(np.array([0.0, d, -1.3]))[1] for d in (60.0, 79.0, 81.0, 300.0)]
@@ -314,7 +314,7 @@ def _risk_truth(frame, fps=10.0, ego_crashed=False, objects=()):
 
 def test_risk_labels_from_a_crash_and_a_near_miss_with_exclusion_at_the_end():
     """10 fps, 0.3 s horizon (3 frames). Near miss (TTC 0.8 s) at frame 4; ego crash from frame 11 on."""
-    from harness.scoring.evaluate import risk_labels
+    from harness.scoring.risk import risk_labels
 
     far = {"id": 1, "ttc": 5.0, "crashed": False}
     near = {"id": 1, "ttc": 0.8, "crashed": False}
@@ -343,7 +343,7 @@ def test_risk_labels_from_a_crash_and_a_near_miss_with_exclusion_at_the_end():
 
 def test_risk_and_lane_speed_metrics_in_evaluate():
     """Scores, baseline and lane speed from a hand-made 5-frame run."""
-    from harness.scoring.evaluate import frame_rows
+    from harness.scoring.per_frame import frame_rows
 
     truths = [_risk_truth(k, objects=[{"id": 1, "box": [0, 0, 1, 1], "visibility": 1.0, "d_long": 30.0,
                                        "d_lat": 0.0, "v_long": -1.0, "v_lat": 0.0,

@@ -20,7 +20,7 @@ import harness.run.runner
 from harness.world.scenario import parse_scenario
 from harness.sweep.expand import format_value, load_and_expand, run_id
 from harness.sweep.spec import check_override_path
-from harness.sweep.summary import deterministic_metrics
+from harness.check.metrics import deterministic_metrics
 from monorarp.app.cli import main
 
 SCENARIO = {

@@ -166,7 +166,7 @@ def test_threaded_runner_and_monte_carlo_options(clip, run, tmp_path):
     out = tmp_path / "mc"
     assert main(["video", str(clip / "frames.mp4"), "--camera", str(clip / "camera.json"), "--out", str(out),
                  "--threaded", "--risk", "monte_carlo", "--speed", "25", "--ego-speed", "none",
-                 "--max-frames", "5", "--no-video"]) == 0
+                 "--frames", "5", "--no-video"]) == 0
     recs = [_strict(x) for x in (out / "predictions.jsonl").read_text().splitlines()]
     assert len(recs) == 5
     assert all(r["risk_kind"] == "probability" and 0 <= r["risk"] <= 1 for r in recs)

@@ -68,7 +68,7 @@ def test_bad_settings_are_refused(kw):
 
 def test_registered_and_in_the_default_pipeline():
     from monorarp.pipeline import registry
-    from monorarp.pipeline.runner import PipelineConfig
+    from monorarp.pipeline.config import PipelineConfig
 
     assert "fcw" in registry.available("warning")
     assert PipelineConfig(detector={"name": "centernet"}).warning.name == "fcw"

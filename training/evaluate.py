@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from monorarp.detection.centernet import CenterNetDetector
-from monorarp.state.geometry import BORDER_TOL_PX
+from monorarp.core.boxes import BORDER_TOL_PX
 from training.ap import average_precision, match
 from training.data import Dataset
 

@@ -31,12 +31,14 @@ import numpy as np
 from harness.bench.defaults import DEFAULT_FRAMES, DEFAULT_TRACKERS, default_scenarios
 from harness.world.scenario import Scenario, frames_to_simulate, load_scenario
 from harness.scoring.bootstrap import SequenceCounts, tracker_intervals
-from harness.scoring.evaluate import EvalConfig, evaluate, state_metrics
+from harness.scoring.evaluate import EvalConfig, evaluate
 from harness.scoring.records import ObjectRecord
+from harness.scoring.state_errors import state_metrics
 from harness.world.truth import FrameTruth
 from monorarp.core.camera import CameraModel
 from monorarp.core.errors import UserError
-from monorarp.pipeline.runner import ComponentConfig, PipelineConfig, check_weak_detections, tracker_input
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig, check_weak_detections
+from monorarp.pipeline.runner import tracker_input
 from monorarp.pipeline.registry import build, get_factory, uses
 from monorarp.core.types import Detection, Frame, FrameResult, strong
 
@@ -179,9 +181,9 @@ def _ms_stats(x: np.ndarray) -> dict[str, float]:
             "p95": float(np.percentile(x, 95)) if x.size else float("nan")}
 
 
-def _summary(runs: Sequence[TrackerRun], detector_ms: np.ndarray, cfg: EvalConfig) -> dict:
+def _summary(runs: Sequence[TrackerRun], detector_ms: np.ndarray) -> dict:
     tr_ms = np.concatenate([r.tracker_ms for r in runs]) if runs else np.empty(0)
-    dist = state_metrics([rec for r in runs for rec in r.records], cfg)["distance"]
+    dist = state_metrics([rec for r in runs for rec in r.records])["distance"]
     return {"tracker_ms": _ms_stats(tr_ms), "detector_ms": _ms_stats(detector_ms),
             **pooled_tracking([r.metrics["tracking"] for r in runs]),
             "distance_rel_err_median": dist["rel_err_median"], "distance_abs_err_median_m": dist["abs_err_median_m"],
@@ -273,7 +275,7 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
         for t in trackers:
             run = run_tracker(seq, ComponentConfig(name=t), cfg.state, cfg.risk, config.eval)
             per_tracker[t].append(run)
-            per_scenario[name]["trackers"][t] = _summary([run], seq.detector_ms, config.eval)
+            per_scenario[name]["trackers"][t] = _summary([run], seq.detector_ms)
             if log:
                 s = per_scenario[name]["trackers"][t]
                 log(f"  {t:<11} {s['tracker_ms']['mean']:8.2f} ms  MOTA {s['mota']:.3f}  IDF1 {s['idf1']:.3f}  HOTA {s['hota']:.3f}")
@@ -286,7 +288,7 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
                    "detector": cfg.detector.model_dump(), "trackers": trackers,
                    "state": cfg.state.model_dump(), "risk": cfg.risk.model_dump(), "scoring": asdict(config.eval)},
         "detector_ms": _ms_stats(all_det_ms),
-        "trackers": {t: _summary(per_tracker[t], all_det_ms, config.eval) for t in trackers},
+        "trackers": {t: _summary(per_tracker[t], all_det_ms) for t in trackers},
         "per_scenario": per_scenario,
         "bootstrap": sequence_bootstrap(per_tracker),
         "paper_table_iii_s": PAPER_TABLE_III_S,

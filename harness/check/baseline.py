@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from harness.sweep.summary import flatten, is_deterministic
+from harness.check.metrics import flatten, is_deterministic
 from monorarp.core.errors import UserError
 from monorarp.app.io import write_json_atomic
 from monorarp.core.readers import read_json

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
 from harness.commands.detector_args import add_oracle_arguments, pipeline_config
+from monorarp.app.common_options import add_frames_option, add_out_option
 from monorarp.app.options import add_pipeline_options
 from monorarp.core.errors import UserError
 
@@ -69,11 +70,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "pooled; default: each scenario's own)")
     add_pipeline_options(t, stages=("detector",))
     add_oracle_arguments(t)
-    t.add_argument("--frames", type=int, default=None, metavar="N",
-                   help="frames per scenario, 1 <= N <= its duration_s x fps (default: "
-                        f"{DEFAULT_FRAMES}, or all of a shorter scenario)")
+    add_frames_option(t, help="frames per scenario, 1 <= N <= its duration_s x fps (default: "
+                              f"{DEFAULT_FRAMES}, or all of a shorter scenario)")
     add_cache_arguments(t)
-    t.add_argument("--out", type=Path, default=Path("runs") / "bench-trackers", metavar="DIR",
+    add_out_option(t, default=Path("runs") / "bench-trackers",
                    help="output directory (default: runs/bench-trackers; a previous benchmark there is replaced)")
     t.set_defaults(func=run_trackers)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
@@ -86,8 +86,6 @@ def run_trackers(args: argparse.Namespace) -> int:
 
     trackers = _split(args.trackers) if args.trackers is not None else list(DEFAULT_TRACKERS)
     scenarios = _split(args.scenarios) if args.scenarios is not None else default_scenarios()
-    if args.frames is not None and args.frames <= 0:
-        raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     check_max_gb(args.cache_max_gb)              # even with --cache off
     seeds = parse_seeds(args.seeds)
     cfg = BenchConfig(scenarios=scenarios, trackers=trackers, pipeline=pipeline_config(args),

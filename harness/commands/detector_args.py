@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 
 from monorarp.core.errors import UserError
-from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig
 
 
 def add_oracle_arguments(p: argparse.ArgumentParser) -> None:

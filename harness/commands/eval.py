@@ -13,9 +13,10 @@ import argparse
 import math
 from pathlib import Path
 
+from monorarp.app.common_options import add_frames_option, add_out_option, frames_within
 from monorarp.app.options import add_pipeline_options, default_name, pipeline_config
 from monorarp.core.errors import UserError
-from monorarp.pipeline.runner import PipelineConfig
+from monorarp.pipeline.config import PipelineConfig
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,9 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="image row of the horizon (px); default: from the calibration, else cy of P2 (level)")
     k.add_argument("--fps", type=float, default=None, metavar="HZ",
                    help="frame rate of tracking sequences (default: export.json's, else KITTI's 10 Hz)")
-    k.add_argument("--frames", type=int, default=None, metavar="N",
-                   help="evaluate only the first N frames (1 .. the dataset's frames, all sequences together)")
-    k.add_argument("--out", type=Path, required=True, metavar="OUT",
+    add_frames_option(k, help="evaluate only the first N frames (1 .. the dataset's frames, all sequences together)")
+    add_out_option(k, required=True, metavar="OUT",
                    help="output directory (created; a previous evaluation there is replaced)")
     k.set_defaults(func=run_kitti)
     p.set_defaults(func=_no_dataset)
@@ -74,8 +74,6 @@ def run_kitti(args: argparse.Namespace) -> int:
     _positive("--fps", args.fps)
     if args.horizon_row is not None and not math.isfinite(args.horizon_row):
         raise UserError(f"--horizon-row: must be finite, got {args.horizon_row}")
-    if args.frames is not None and args.frames <= 0:
-        raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     detector = args.detector
     if is_model_path(detector):
         detector = str(Path(detector).expanduser())
@@ -91,9 +89,8 @@ def run_kitti(args: argparse.Namespace) -> int:
     if tracker_given and ds.kind == "object":
         raise UserError(f"--tracker: {ds.root} is a KITTI object dataset, whose images are scored one by one "
                         "without a tracker; --tracker applies to tracking datasets (image_02/, label_02/)")
-    if args.frames is not None and args.frames > ds.n_frames:
-        seqs = f" ({len(ds.sequences)} sequences together)" if ds.kind == "tracking" and len(ds.sequences) > 1 else ""
-        raise UserError(f"--frames: {args.frames} exceeds the dataset's {ds.n_frames} frames{seqs} in {ds.root}")
+    seqs = f" ({len(ds.sequences)} sequences together)" if ds.kind == "tracking" and len(ds.sequences) > 1 else ""
+    frames_within(args.frames, ds.n_frames, "dataset's", f"{seqs} in {ds.root}")
     opts = KittiEvalOptions(detector=detector, tracker=tracker, camera_height_m=args.camera_height,
                             horizon_row=args.horizon_row, fps=args.fps, frames=args.frames)
     metrics = evaluate_kitti(ds, opts, args.out)

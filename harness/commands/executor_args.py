@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from monorarp.app.common_options import positive_int
 from monorarp.core.errors import UserError
 
 
@@ -11,7 +12,7 @@ def add_executor_arguments(p: argparse.ArgumentParser) -> None:
     """``--executor``, ``--workers``, ``--address``, ``--resume``, ``--run-timeout``, ``--no-progress``."""
     p.add_argument("--executor", choices=("local", "ray"), default="local",
                    help="local: this machine (process pool when --workers > 1); ray: Ray tasks (default: local)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
+    p.add_argument("--workers", type=positive_int, default=1, metavar="N",
                    help="parallel runs: processes (local) or CPUs of the local Ray instance (default 1)")
     p.add_argument("--address", default=None, metavar="auto|HOST:PORT",
                    help="Ray cluster to connect to (with --executor ray); default: start a local Ray instance")
@@ -26,8 +27,6 @@ def add_executor_arguments(p: argparse.ArgumentParser) -> None:
 
 def check_executor_arguments(args: argparse.Namespace) -> None:
     """One-line :class:`UserError` for a value the options above refuse."""
-    if args.workers < 1:
-        raise UserError(f"--workers: must be a positive integer, got {args.workers}")
     if args.run_timeout is not None and not 0 < args.run_timeout < float("inf"):
         raise UserError(f"--run-timeout: must be a positive number of seconds, got {args.run_timeout:g}")
     if args.address is not None and args.executor != "ray":

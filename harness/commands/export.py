@@ -10,8 +10,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from monorarp.app.common_options import add_frames_option, add_out_option
 from monorarp.core.errors import UserError
-from monorarp.pipeline.runner import PipelineConfig
+from monorarp.pipeline.config import PipelineConfig
 
 DEFAULT_MOT_DETECTOR = PipelineConfig().detector.name
 
@@ -30,9 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("source", type=Path, metavar="RUN_DIR|SCENARIO.yaml",
                    help="a directory written by `monorarp run`/`monorarp render`, or a scenario file")
     p.add_argument("--format", required=True, choices=FORMATS, help="dataset layout")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR",
-                   help="output directory (created; a previous export there is replaced)")
-    p.add_argument("--frames", type=int, default=None, metavar="N", help="export only the first N frames")
+    add_out_option(p, required=True, help="output directory (created; a previous export there is replaced)")
+    add_frames_option(p, help="export only the first N frames (1 .. the source's frames; default: all)")
     p.add_argument("--detector", default=None, metavar="NAME|PATH.onnx|oracle|none",
                    help=f"mot: the detector whose boxes go to det/det.txt (default {DEFAULT_MOT_DETECTOR}; "
                         "'none' writes no det/); not used by the KITTI formats")
@@ -43,8 +43,6 @@ def run(args: argparse.Namespace) -> int:
     from harness.export.exporter import export
     from harness.export.source import open_source
 
-    if args.frames is not None and args.frames <= 0:
-        raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     det_name = args.detector
     if args.format != "mot":
         if det_name is not None:
@@ -55,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     detector = None
     if det_name is not None and det_name.lower() != "none":
         from monorarp.pipeline.detectors import build_detector
-        from monorarp.pipeline.runner import ComponentConfig
+        from monorarp.pipeline.config import ComponentConfig
 
         detector = build_detector(ComponentConfig(name=det_name), source.camera)
     stats = export(source, args.format, args.out, detector=detector,

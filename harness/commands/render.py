@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from monorarp.app.common_options import add_frames_option, add_out_option
 from monorarp.core.errors import UserError
 
 VIDEO_NAME = "frames.mp4"
@@ -33,10 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "DIR is replaced as a whole only when everything succeeded.",
     )
     p.add_argument("scenario", type=Path, metavar="SCENARIO.yaml", help="scenario file")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR",
-                   help="output directory (created; a previous render there is replaced)")
-    p.add_argument("--frames", type=int, default=None, metavar="N",
-                   help="render only the first N frames (1 .. duration_s * fps; default: all)")
+    add_out_option(p, required=True, help="output directory (created; a previous render there is replaced)")
+    add_frames_option(p, help="render only the first N frames (1 .. duration_s * fps; default: all)")
     p.add_argument("--crf", type=int, default=18, metavar="Q",
                    help="H.264 quality, x264 constant rate factor 0..51 (lower = better; default 18)")
     p.set_defaults(func=run)
@@ -45,8 +44,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from harness.world.scenario import ScenarioError, frames_to_simulate, load_scenario
 
-    if args.frames is not None and args.frames <= 0:
-        raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     if not 0 <= args.crf <= 51:
         raise UserError(f"--crf: must be in 0..51, got {args.crf}")
     scenario = load_scenario(args.scenario)

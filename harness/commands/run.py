@@ -11,6 +11,7 @@ import argparse
 from pathlib import Path
 
 from harness.commands.detector_args import add_oracle_arguments, pipeline_config
+from monorarp.app.common_options import add_frames_option, add_no_video_option, add_out_option, add_threaded_option
 from monorarp.app.options import add_pipeline_options
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.core.errors import UserError
@@ -33,12 +34,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--risk-horizon", type=float, default=10.0, metavar="S",
                    help="risk scoring: a frame is positive when a collision or near miss follows within S s "
                         "(default 10)")
-    p.add_argument("--frames", type=int, default=None, metavar="N",
-                   help="run only the first N frames (1 .. duration_s * fps; default: all)")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="output directory (default: runs/<scenario name>; a previous run there is replaced)")
-    p.add_argument("--threaded", action="store_true", help="one thread per stage (as in the paper)")
-    p.add_argument("--no-video", action="store_true", help="write neither annotated.mp4 nor frames.mp4")
+    add_frames_option(p, help="run only the first N frames (1 .. duration_s * fps; default: all)")
+    add_out_option(p, help="output directory (default: runs/<scenario name>; a previous run there is replaced)")
+    add_threaded_option(p)
+    add_no_video_option(p, help="write neither annotated.mp4 nor frames.mp4")
     p.add_argument("--warning-threshold", type=float, default=TTC_CUE_THRESHOLD_S, metavar="S",
                    help="scoring and display: TTC below which a frame counts as a warning, s "
                         f"(default {TTC_CUE_THRESHOLD_S}; the warning stage keeps its own threshold)")
@@ -52,8 +51,6 @@ def run(args: argparse.Namespace) -> int:
     from harness.scoring.tables import summary_table
     from monorarp.lanes.geometry import EgoSpeedStageError
 
-    if args.frames is not None and args.frames <= 0:
-        raise UserError(f"--frames: must be a positive integer, got {args.frames}")
     if not args.warning_threshold > 0:
         raise UserError(f"--warning-threshold: must be positive (s), got {args.warning_threshold}")
     if not args.risk_horizon > 0:

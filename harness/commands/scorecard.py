@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from monorarp.app.common_options import add_frames_option, add_out_option, int_in
 from monorarp.core.errors import UserError
 
 SUITE_CHOICES = ("nhtsa", "ncap", "cut_in", "nominal", "risk", "all")
@@ -32,10 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_pipeline_options(p, stages=("detector", "tracker"))
     p.add_argument("--warning-threshold", type=float, default=None, metavar="S",
                    help="TTC threshold of the warning stage, s (default: the stage's own, 3.0)")
-    p.add_argument("--trials", type=int, default=None, metavar="N",
+    p.add_argument("--trials", type=int_in(1, MAX_TRIALS), default=None, metavar="N",
                    help=f"trials per test, 1..{MAX_TRIALS} (nominal tests: seeds per scenario; default: the protocol's)")
-    p.add_argument("--frames", type=int, default=None, metavar="N", help="cap on frames per run (default none)")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory")
+    add_frames_option(p, help="cap on frames per run (default none)")
+    add_out_option(p, required=True, help="output directory")
     add_executor_arguments(p)
     p.set_defaults(func=run)
 
@@ -48,7 +49,7 @@ def check_protocol_files(paths: list[Path]) -> None:
             if path.is_dir():
                 raise UserError(f"--protocol {path}: is a directory; give protocol files (FILE.yaml)")
             key = path.resolve()
-        except OSError:            # e.g. a name too long: the scorecard's own check says so
+        except (OSError, RuntimeError):   # a name too long, a symlink loop: the scorecard's own check says so
             continue
         if key in seen:
             raise UserError(f"--protocol {path}: given twice")
@@ -67,8 +68,6 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--warning-threshold: must be in (0, 10] s, got {args.warning_threshold}")
     if args.protocol and args.suite:
         raise UserError("--protocol and --suite: give one or the other")
-    if args.trials is not None and not 1 <= args.trials <= MAX_TRIALS:
-        raise UserError(f"--trials: must be 1..{MAX_TRIALS}, got {args.trials}")
     check_protocol_files(args.protocol or [])
     suites = SUITES if not args.suite or "all" in args.suite else tuple(dict.fromkeys(args.suite))
     cfg = pipeline_config(args)

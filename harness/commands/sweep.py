@@ -14,6 +14,7 @@ from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
 from harness.commands.executor_args import add_executor_arguments, check_executor_arguments
+from monorarp.app.common_options import add_out_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,8 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "isolated and atomically into DIR/runs/<id>/, then write DIR/summary.json, DIR/summary.csv "
                     "and a self-contained DIR/report.html. Exits 1 if any run failed, 2 on bad input.")
     p.add_argument("spec", type=Path, metavar="SPEC.yaml", help="sweep spec file")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (new or empty, or "
-                   "a previous sweep's with --resume)")
+    add_out_option(p, required=True, help="output directory (new or empty, or a previous sweep's with --resume)")
     add_executor_arguments(p)
     p.add_argument("--videos", action="store_true", help="also write annotated.mp4 for every run (slower)")
     add_cache_arguments(p)

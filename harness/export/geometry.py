@@ -169,7 +169,7 @@ def levels(x: np.ndarray, thresholds: tuple[float, float]) -> np.ndarray:
 
 def kitti_type(length: float, width: float) -> str:
     """KITTI class of a vehicle of this footprint: ``Truck`` for the renderer's trucks, else ``Car``."""
-    from harness.render.meshes import vehicle_layout
+    from harness.world.vehicles import vehicle_layout
 
     return "Truck" if vehicle_layout(float(length), float(width)).truck else "Car"
 

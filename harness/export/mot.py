@@ -5,7 +5,7 @@
 * ``gt/gt.txt`` — ``frame, id, bb_left, bb_top, bb_width, bb_height, conf, class, visibility``,
   one line per vehicle with at least one visible pixel. ``class`` 3 (MOTChallenge's car);
   ``conf`` 1 for the objects the harness scores and 0 for those it ignores (visibility < 0.3
-  or farther than 80 m: :func:`harness.scoring.evaluate.counted_mask`), MOTChallenge's
+  or farther than 80 m: :func:`harness.scoring.rules.counted_mask`), MOTChallenge's
   "not considered" flag; ``visibility`` the ground truth's;
 * ``det/det.txt`` — the chosen detector's boxes, ``frame, -1, bb_left, bb_top, bb_width,
   bb_height, score, -1, -1, -1`` (absent with ``--detector none``);
@@ -95,7 +95,7 @@ class MotWriter:
         self.frames = self.objects = self.detections = 0
 
     def add(self, index: int, image: np.ndarray, truth: FrameTruth, detections=None) -> None:
-        from harness.scoring.evaluate import counted_mask
+        from harness.scoring.rules import counted_mask
 
         frame = index + 1
         path = self.seq / "img1" / f"{frame:06d}{IMAGE_EXT}"

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from harness.run.outputs import CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME, VIDEO_NAME
 from harness.world.truth import FrameTruth
+from monorarp.app.common_options import check_frames, frames_within
 from monorarp.core.camera import CameraModel
 from monorarp.core.errors import UserError
 from monorarp.core.types import Frame
@@ -48,8 +49,7 @@ class ExportSource:
 def open_source(path: str | Path, n_frames: int | None = None) -> ExportSource:
     """The first ``n_frames`` (default: all) of a scenario file or a run directory."""
     path = Path(path)
-    if n_frames is not None and n_frames <= 0:
-        raise ExportInputError(f"--frames: must be a positive integer, got {n_frames}")
+    check_frames(n_frames, ExportInputError)
     if path.is_dir():
         return _run_dir(path, n_frames)
     if path.suffix.lower() in (".yaml", ".yml"):
@@ -152,9 +152,7 @@ def _run_dir(run_dir: Path, n_frames: int | None) -> ExportSource:
     truths = _read_truth(run_dir / GROUND_TRUTH_NAME)
     if not truths:
         raise ExportInputError(f"{run_dir / GROUND_TRUTH_NAME}: no frames")
-    if n_frames is not None and n_frames > len(truths):
-        raise ExportInputError(f"--frames: {n_frames} exceeds the {len(truths)} frames of {run_dir}")
-    n = len(truths) if n_frames is None else n_frames
+    n = frames_within(n_frames, len(truths), "run directory's", f" in {run_dir}", ExportInputError)
     import cv2
 
     cap = cv2.VideoCapture(str(video))

@@ -137,27 +137,6 @@ def rear_face_distance(dimensions, location, rotation_y, camera: CameraModel, of
     return corners[..., 1].min(axis=1), centre[:, 0]
 
 
-# ----------------------------------------------------------------------------- difficulty
-#: KITTI object benchmark: (min box height px, max occlusion level, max truncation).
-DIFFICULTIES: dict[str, tuple[float, int, float]] = {"easy": (40.0, 0, 0.15), "moderate": (25.0, 1, 0.30),
-                                                     "hard": (25.0, 2, 0.50)}
-
-
-def passes(box: np.ndarray, occluded: np.ndarray, truncated: np.ndarray, difficulty: str) -> np.ndarray:
-    """(N,) does each object pass KITTI's ``difficulty`` filter? (devkit: height ``y2 - y1`` > min height,
-    occlusion <= max, truncation <= max)."""
-    min_h, max_occ, max_trunc = DIFFICULTIES[difficulty]
-    b = np.asarray(box, dtype=float).reshape(-1, 4)
-    return (b[:, 3] - b[:, 1] > min_h) & (np.asarray(occluded) <= max_occ) & (np.asarray(truncated) <= max_trunc)
-
-
-def difficulty_names(box, occluded, truncated) -> list[str]:
-    """The easiest KITTI difficulty each object passes ("" when none)."""
-    ok = {d: passes(box, occluded, truncated, d) for d in DIFFICULTIES}
-    n = len(np.asarray(box).reshape(-1, 4))
-    return [next((d for d in DIFFICULTIES if ok[d][k]), "") for k in range(n)]
-
-
 # ------------------------------------------------------------------------------ velocity
 def finite_difference(frames: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:
     """(N,) d x / d t of one track's samples (sorted by frame): central differences between consecutive

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from harness.render.sensor import apply_sensor
+from harness.render.shading import AMBIENT, SKY_RGB
 from harness.world.scenario import Conditions, Scenario
 from harness.world.state import VehicleState, WorldState
 from monorarp.core.camera import CameraModel
@@ -57,9 +58,6 @@ def _sun(elevation_deg: float, azimuth_deg: float) -> tuple[float, float, float]
 def scene_lighting(scenario: Scenario) -> Lighting:
     """The :class:`Lighting` of ``scenario`` (``render`` light for ``day``; rain dims the sun)."""
     c, r = scenario.conditions or Conditions(), scenario.render
-    from harness.render.renderer import SKY_RGB
-    from harness.render.shading import AMBIENT
-
     if c.time_of_day == "day":
         lit = Lighting(tuple(r.light_direction), r.light_intensity, AMBIENT, (1.0, 1.0, 1.0), SKY_RGB, False, 1.0)
     elif c.time_of_day == "low_sun":     # 6 deg above the horizon, ahead and a little to the left

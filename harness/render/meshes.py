@@ -4,9 +4,10 @@ Model frame (see :mod:`harness.world.geometry`): X forward, Y left, Z up, origin
 on the ground at the footprint centre. Every mesh fills its length x width
 footprint exactly: the rear bumper is at X = -length/2 (so ``d_long`` measures
 the distance to it), the body sides at Y = +-width/2, and it rises from the
-ground (tyre contact) to :func:`vehicle_height`. Cars keep real proportions:
+ground (tyre contact) to :func:`harness.world.vehicles.vehicle_height`. Cars keep real proportions:
 rear overhang 0.8-1.1 m behind the rear axle, ground clearance 0.17 m, wheel
-radius 0.32 m. Vehicles longer than 7 m are trucks with box bodies.
+radius 0.32 m. Vehicles longer than 7 m are trucks with box bodies. The dimensions are the world's
+(:mod:`harness.world.vehicles`); this module makes meshes and colours of them.
 
 The wheel polygons (``WHEEL_SECTIONS`` sides) have a vertex straight down, so
 the tyres touch the ground along the line X = axle, Z = 0.
@@ -15,13 +16,13 @@ the tyres touch the ground along the line X = axle, Z = 0.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
+from harness.world.vehicles import vehicle_layout
+
 WHEEL_SECTIONS = 12
-TRUCK_MIN_LENGTH_M = 7.0
 
 # Common car paints (RGB 0..255).
 PALETTE = np.array([
@@ -34,48 +35,6 @@ TYRE = (22, 22, 22)
 RIM = (120, 120, 125)
 TAIL_LIGHT = (150, 10, 10)
 TRIM = (40, 40, 42)
-
-
-@dataclass(frozen=True)
-class VehicleLayout:
-    """Dimensions (m) of one vehicle's mesh, in its model frame."""
-
-    length: float
-    width: float
-    truck: bool
-    clearance: float          # underside of the body above the ground
-    wheel_radius: float
-    wheel_width: float
-    rear_axle_x: float        # X of the rear axle (negative)
-    front_axle_x: float
-    wheel_y: float            # |Y| of the wheels' outer faces
-    belt: float               # top of the lower body
-    roof: float               # total height
-
-    @property
-    def rear_overhang(self) -> float:
-        return self.rear_axle_x + self.length / 2
-
-
-@functools.lru_cache(maxsize=1024)
-def vehicle_layout(length: float, width: float) -> VehicleLayout:
-    """The mesh dimensions for a vehicle of ``length`` x ``width`` metres."""
-    if length > TRUCK_MIN_LENGTH_M:
-        r = 0.5
-        rear_oh = min(0.25 * length, 2.5)
-        return VehicleLayout(length, width, True, 0.45, r, 0.3, -length / 2 + rear_oh,
-                             length / 2 - 1.4, width / 2 - 0.05, 1.1, 3.6)
-    r = 0.32
-    rear_oh = float(np.clip(0.19 * length, 0.8, 1.1))
-    front_oh = float(np.clip(0.18 * length, 0.7, 1.0))
-    roof = 1.45 if length <= 5.5 else 2.1
-    return VehicleLayout(length, width, False, 0.17, r, 0.22, -length / 2 + rear_oh,
-                         length / 2 - front_oh, width / 2 - 0.04, 0.95, roof)
-
-
-def vehicle_height(length: float, width: float) -> float:
-    """Roof height (m) of the mesh for this footprint: the 3-D box's height."""
-    return vehicle_layout(length, width).roof
 
 
 def vehicle_color(palette_seed: int, vehicle_id: int) -> tuple[int, int, int]:

@@ -39,13 +39,13 @@ from OpenGL import GL  # noqa: E402
 
 from harness.render import effects, meshes, passes, road, shading, visibility  # noqa: E402
 from harness.world import geometry  # noqa: E402
+from harness.world.vehicles import vehicle_height  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
 from harness.world.scenario import Scenario  # noqa: E402
-from harness.simulation.placement import road_plan, road_profile  # noqa: E402
+from harness.world.road import road_plan, road_profile  # noqa: E402
 from harness.world.state import VehicleState, WorldState  # noqa: E402
 from monorarp.core.camera import CameraModel  # noqa: E402
 
-SKY_RGB = (0.62, 0.74, 0.90)
 ZNEAR_M = 0.05
 ZFAR_M = 6000.0
 PIXEL_CENTRE_SHIFT = 0.5
@@ -166,7 +166,7 @@ class Renderer:
         self._noise_std, self._blur_px, self._seed = opts.noise_std, opts.blur_px, scenario.seed
         # conditions: None keeps the default path (no depth read, no effects) exactly as without the block
         self._lighting = None if effects.is_neutral(scenario.conditions) else effects.scene_lighting(scenario)
-        sky = SKY_RGB if self._lighting is None else self._lighting.sky_srgb
+        sky = shading.SKY_RGB if self._lighting is None else self._lighting.sky_srgb
         if self._lighting is not None:
             self._light_w, self._intensity = np.asarray(self._lighting.light_w, dtype=float), self._lighting.intensity
         self._scene = pyrender.Scene(bg_color=(*sky, 1.0), ambient_light=(0.0, 0.0, 0.0))
@@ -273,7 +273,7 @@ class Renderer:
         vehicles = tuple(world.vehicles)
         nodes = self._sync_vehicles(vehicles)
         self._scene.set_pose(self._cam_node, geometry.camera_pose_world(world.ego, c, self._profile, self._plan))
-        heights = np.array([meshes.vehicle_height(v.length, v.width) for v in vehicles])
+        heights = np.array([vehicle_height(v.length, v.width) for v in vehicles])
         corners_cam = c.ego_to_cam(geometry.vehicle_corners_ego(vehicles, world.ego, c, heights, self._profile,
                                                                   self._plan))
         boxes = visibility.projected_boxes(corners_cam, c, ZNEAR_M)

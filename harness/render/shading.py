@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+#: The clear sky's colour (sRGB 0..1): the background of a daylight frame.
+SKY_RGB = (0.62, 0.74, 0.90)
 AMBIENT = 0.5
 
 

@@ -31,7 +31,7 @@ import numpy as np
 from monorarp.core.camera import CameraModel
 from monorarp.app.io import to_jsonable
 from monorarp.pipeline import registry
-from monorarp.pipeline.runner import ComponentConfig
+from monorarp.pipeline.config import ComponentConfig
 from monorarp.core.types import Detection, FrameResult, strong
 
 MAX_FRAMES = 20_000   # frames kept (least recently used dropped): a few MB

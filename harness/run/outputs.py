@@ -7,7 +7,7 @@ run succeeded; on any failure nothing is left):
 * ``per_object.csv`` — estimate and truth side by side per frame and object;
 * ``per_frame.csv`` — per frame: ego speed estimate and truth, risk, its probability, the
   1/TTC baseline (when the run's risk is another estimator) and the risk label
-  (:func:`harness.scoring.evaluate.frame_rows`);
+  (:func:`harness.scoring.per_frame.frame_rows`);
 * ``annotated.mp4`` — :func:`monorarp.app.display.draw_frame` on every frame (unless ``annotate=False``);
 * ``frames.mp4``, ``camera.json``, ``ground_truth.jsonl`` — as ``monorarp render`` writes them
   (``frames.mp4`` only with ``write_frames=True``).
@@ -90,7 +90,8 @@ class RunOutputs:
         """Write ``metrics.json``, ``per_object.csv`` and ``per_frame.csv``."""
         if self.dir is None:
             return
-        from harness.scoring.evaluate import write_frame_csv, write_metrics   # here: the names above stay cheap
+        from harness.scoring.evaluate import write_metrics   # here: the names above stay cheap
+        from harness.scoring.per_frame import write_frame_csv
         from harness.scoring.records import write_csv
 
         write_metrics(metrics, self.dir / METRICS_NAME)

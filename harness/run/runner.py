@@ -25,7 +25,8 @@ from harness.run.scoring import score_run
 from harness.world.scenario import Scenario
 from harness.scoring.evaluate import EvalConfig
 from monorarp.app.io import to_jsonable
-from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig
+from monorarp.pipeline.runner import Pipeline
 from monorarp.pipeline.registry import uses
 from monorarp.core.types import FrameResult
 

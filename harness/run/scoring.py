@@ -11,10 +11,12 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass
 
-from harness.scoring.evaluate import EvalConfig, evaluate, frame_rows
+from harness.scoring.evaluate import EvalConfig, evaluate
+from harness.scoring.per_frame import frame_rows
 from harness.world.truth import FrameTruth
 from monorarp.core.camera import CameraModel
-from monorarp.pipeline.runner import Pipeline, PipelineConfig
+from monorarp.pipeline.config import PipelineConfig
+from monorarp.pipeline.runner import Pipeline
 from monorarp.pipeline.registry import build, uses
 from monorarp.risk.estimators import TTCRiskEstimator
 from monorarp.risk.ttc import HORIZON_S
@@ -36,7 +38,7 @@ class RunScore:
     manoeuvre_risk: list[float] | None = None
 
     def frame_rows(self) -> list[dict]:
-        """The rows of ``per_frame.csv`` (:func:`harness.scoring.evaluate.frame_rows`)."""
+        """The rows of ``per_frame.csv`` (:func:`harness.scoring.per_frame.frame_rows`)."""
         return frame_rows(self.truths, self.results, self.eval_config, self.baseline, self.fcw_risk,
                           self.manoeuvre_risk)
 

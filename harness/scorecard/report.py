@@ -7,7 +7,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from harness.sweep.report import CSS, _fmt, _png, _table
+from harness.sweep.html import CSS, fmt, png, table
 
 CSS_EXTRA = "tr.pass td{background:#e6f4ea}tr.fail td{background:#fde8e8}"
 
@@ -54,23 +54,23 @@ def console_table(card: Mapping) -> str:
     """Plain-text scorecard for the terminal."""
     header, rows, _ = tests_rows(card)
     keep = [0, 1, 2, 3, 5, 6, 7, 8]
-    cells = [[str(header[i]) for i in keep]] + [[_fmt(r[i]) if not isinstance(r[i], str) else r[i] for i in keep]
+    cells = [[str(header[i]) for i in keep]] + [[fmt(r[i]) if not isinstance(r[i], str) else r[i] for i in keep]
                                                 for r in rows]
     widths = [min(60, max(len(c[i]) for c in cells)) for i in range(len(keep))]
     lines = ["  ".join(c[i][:60].ljust(widths[i]) for i in range(len(keep))) for c in cells]
     fa = card["false_alarms"]
     if fa["runs"]:
         lines.append(f"false alarms: {fa['episodes']} in {fa['hours']:.2f} h / {fa['km']:.1f} km of nominal "
-                     f"traffic ({fa['runs']} runs{_warmup_note(fa)}) = {_fmt(fa['per_hour'])} per hour{_braking_note(fa)}")
+                     f"traffic ({fa['runs']} runs{_warmup_note(fa)}) = {fmt(fa['per_hour'])} per hour{_braking_note(fa)}")
         for e in fa["list"][:20]:
             lines.append(f"  {e['run']} t={e['t_s']:.2f}s: {e['why']}")
     if card.get("risk"):
         for h, per in card["risk"].items():
-            lines.append(f"risk @ {h}: " + "; ".join(f"{name} AUROC {_fmt(v['auroc'])} AP {_fmt(v['ap'])} "
+            lines.append(f"risk @ {h}: " + "; ".join(f"{name} AUROC {fmt(v['auroc'])} AP {fmt(v['ap'])} "
                                                      f"({v['positives']}/{v['frames']} positive frames)"
                                                      for name, v in per.items()))
     for k, v in card["summary"].items():
-        lines.append(f"{k}: {_fmt(v) if not isinstance(v, dict) else v}")
+        lines.append(f"{k}: {fmt(v) if not isinstance(v, dict) else v}")
     if card["failed_runs"]:
         lines.append(f"{len(card['failed_runs'])} runs failed: " + "; ".join(f"{f['id']}: {f['error']}"
                                                                            for f in card["failed_runs"][:5]))
@@ -105,7 +105,7 @@ def timing_plot(card: Mapping) -> str:
     ax.set_title("Warning timing (dashes: required TTC; x at 0: no warning or a premature one)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, ncol=3)
-    return _png(fig)
+    return png(fig)
 
 
 def roc_plot(card: Mapping, curves: Mapping[str, tuple[np.ndarray, np.ndarray]] | None) -> str:
@@ -121,7 +121,7 @@ def roc_plot(card: Mapping, curves: Mapping[str, tuple[np.ndarray, np.ndarray]] 
     ax.set_ylabel("true positive rate")
     ax.set_title("Risk ROC, 2 s horizon (pooled)")
     ax.legend(fontsize=8)
-    return _png(fig)
+    return png(fig)
 
 
 def render_scorecard(card: Mapping, roc_curves: Mapping | None = None, standalone: bool = True) -> str:
@@ -137,31 +137,31 @@ def render_scorecard(card: Mapping, roc_curves: Mapping | None = None, standalon
              f"when no warning comes.</p>"]
     summ = card["summary"]
     if summ:
-        parts.append(_table(["figure", "value"], [[k, v if not isinstance(v, dict) else
+        parts.append(table(["figure", "value"], [[k, v if not isinstance(v, dict) else
                                                     ", ".join(f"{a} {b}" for a, b in v.items())]
                                                    for k, v in summ.items()], left=2))
     if card["tests"]:
         header, rows, classes = tests_rows(card)
-        parts.append(_table(header, rows, left=3, row_classes=classes))
+        parts.append(table(header, rows, left=3, row_classes=classes))
         parts.append(timing_plot(card))
     fa = card["false_alarms"]
     if fa["runs"]:
         parts.append(f"<h3>False alarms in nominal traffic</h3><p><b>{fa['episodes']}</b> warning episodes without "
                      f"a conflict in {fa['hours']:.2f} h ({fa['km']:.1f} km, {fa['runs']} runs"
                      f"{html.escape(_warmup_note(fa))}): "
-                     f"<b>{_fmt(fa['per_hour'])}</b> per hour{html.escape(_braking_note(fa))}.</p>")
+                     f"<b>{fmt(fa['per_hour'])}</b> per hour{html.escape(_braking_note(fa))}.</p>")
         if fa["list"]:
-            parts.append(_table(["run", "t (s)", "track", "vehicle", "braking held: true TTC (s)", "why"],
+            parts.append(table(["run", "t (s)", "track", "vehicle", "braking held: true TTC (s)", "why"],
                                 [[x["run"], x["t_s"], x["track_id"], x["gt_id"], x.get("true_braking_ttc_s"), x["why"]]
                                  for x in fa["list"]], left=6))
     if card.get("risk"):
         rows = [[h, name, v["auroc"], v["ap"], v["positives"], v["frames"], v["runs"]]
                 for h, per in card["risk"].items() for name, v in per.items()]
         parts.append("<h3>Risk over the scenario family</h3>" +
-                     _table(["horizon", "estimator", "AUROC", "AP", "positive frames", "frames", "runs"], rows, left=2))
+                     table(["horizon", "estimator", "AUROC", "AP", "positive frames", "frames", "runs"], rows, left=2))
         parts.append(roc_plot(card, roc_curves))
     if card["failed_runs"]:
-        parts.append("<h3>Failed runs</h3>" + _table(["run", "error"], [[f["id"], f["error"]]
+        parts.append("<h3>Failed runs</h3>" + table(["run", "error"], [[f["id"], f["error"]]
                                                                         for f in card["failed_runs"]], left=2))
     body = "\n".join(p for p in parts if p)
     if not standalone:

@@ -27,14 +27,15 @@ from harness.scorecard import score
 from harness.scorecard.protocols import ProtocolError, Trial, expand_protocol, load_protocol
 from harness.scoring.warnings import braking_alarm
 from harness.sweep.executors import Executor, make_executor
-from harness.sweep.expand import RunTask, _inject_seeds, sanitize
+from harness.sweep.expand import RunTask, inject_seeds, sanitize
 from harness.sweep.orchestrate import execute, finished, prepare_out_dir
 from harness.sweep.spec import Variant, run_mapping
 from harness.sweep.worker import METRICS_JSON, RUN_JSON
 from monorarp.core.readers import read_json_or_none
+from monorarp.app.common_options import check_frames
 from monorarp.app.options import CLI_EGO_SPEED
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
-from monorarp.pipeline.runner import PipelineConfig
+from monorarp.pipeline.config import PipelineConfig
 
 PROTOCOL_DIR = Path(__file__).resolve().parents[2] / "scenarios" / "fcw"
 SUITES = ("nhtsa", "ncap", "cut_in", "nominal", "risk")
@@ -90,8 +91,7 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
 
     if opts.trials is not None and opts.trials < 1:
         raise ProtocolError(f"--trials: must be >= 1, got {opts.trials}")
-    if opts.frames is not None and opts.frames < 1:
-        raise ProtocolError(f"--frames: must be >= 1, got {opts.frames}")
+    check_frames(opts.frames, ProtocolError)
     trials: list[Trial] = []
     for path in protocol_paths(opts):
         try:
@@ -123,7 +123,7 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
         tasks.append(RunTask(id=f"{trial.suite}__{rid}", index=len(tasks), scenario_file=trial.scenario_file,
                              scenario_key=trial.suite, seed=int(scenario["seed"]), grid=dict(trial.params),
                              variant=variant.name, scenario=scenario,
-                             pipeline=_inject_seeds(built[key], int(scenario["seed"])), frames=opts.frames,
+                             pipeline=inject_seeds(built[key], int(scenario["seed"])), frames=opts.frames,
                              warning_threshold_s=TTC_CUE_THRESHOLD_S))
     ids = [t.id for t in tasks]
     if len(set(ids)) != len(ids):

@@ -1,8 +1,9 @@
 """KITTI-style 2-D average precision (pure maths, no files).
 
-Per image and difficulty, KITTI object devkit's ``clean_data`` rules (valid, ignored and
-``DontCare`` boxes), greedy matching by descending score, interpolated precision sampled at 40
-(``AP_R40``) and 11 (``AP_R11``) recall points, both as defined and as the devkit samples them.
+Per image and difficulty (:mod:`harness.scoring.kitti_difficulty`), KITTI object devkit's
+``clean_data`` rules (valid, ignored and ``DontCare`` boxes), greedy matching by descending score,
+interpolated precision sampled at 40 (``AP_R40``) and 11 (``AP_R11``) recall points, both as defined
+and as the devkit samples them.
 Values are fractions 0..1. The rules in full: docs/kitti.md (KITTI AP).
 """
 
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.kitti_eval.geometry import DIFFICULTIES, passes
+from harness.scoring.kitti_difficulty import DIFFICULTIES, passes
 from monorarp.core.boxes import as_boxes, intersection, iou_matrix
 
 NEIGHBOUR_CLASS = {"car": "van", "pedestrian": "person_sitting"}

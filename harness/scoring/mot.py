@@ -2,7 +2,7 @@
 
 Counting rule: each frame's ground-truth objects are split into *counted*
 ones (by default visibility >= 0.3 and within the evaluation range; see
-:class:`harness.scoring.evaluate.EvalConfig`) and *ignored* ones. Tracks are
+:class:`harness.scoring.rules.EvalConfig`) and *ignored* ones. Tracks are
 first matched (Hungarian, IoU >= 0.5) against all objects; tracks matched to
 an ignored object are removed from that frame (MOTChallenge's distractor
 rule), and so are, optionally, tracks near no counted object that cover most

@@ -24,7 +24,7 @@ class ObjectRecord:
     track_id: int | None = None
     counted: bool = False        # GT object inside the scoring rule (visibility, range)
     matched: bool = False        # GT object and track matched (IoU >= min_iou)
-    set_aside: bool = False      # unmatched track not counted as a false positive (see evaluate)
+    set_aside: bool = False      # unmatched track not counted as a false positive (see rules)
     iou: float = NAN
     visibility: float = NAN
     coasting: bool | None = None
@@ -68,7 +68,13 @@ class ObjectRecord:
 COLUMNS = [f.name for f in fields(ObjectRecord)]
 
 
-def _cell(v) -> str:
+def as_float(v) -> float:
+    """``v`` as a float; NaN for None (a record's missing value)."""
+    return NAN if v is None else float(v)
+
+
+def cell(v) -> str:
+    """One CSV cell: empty for None or NaN, 1/0 for a bool, a float rounded to 6 digits."""
     if v is None:
         return ""
     if isinstance(v, bool):
@@ -85,7 +91,7 @@ def write_csv(records: list[ObjectRecord], path: str | Path) -> None:
         w.writerow(COLUMNS)
         for r in records:
             d = asdict(r)
-            w.writerow([_cell(d[c]) for c in COLUMNS])
+            w.writerow([cell(d[c]) for c in COLUMNS])
 
 
 def read_csv(path: str | Path) -> list[ObjectRecord]:

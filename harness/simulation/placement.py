@@ -11,11 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness.world.road_plan import RoadPlan
-from harness.world.road_profile import RoadProfile
-
-EGO_START_X_M = 250.0
-"""Ego centre at t = 0: far enough from the road start for vehicles placed up to 200 m behind."""
 
 TRAFFIC_MIN_GAP_M = 5.0
 """Bumper-to-bumper clearance (m) a random traffic vehicle keeps, at t = 0, to every other vehicle in its lane."""
@@ -46,19 +41,6 @@ def placed_centre_x(ego_x: float, camera_forward_offset_m: float, distance_m: fl
     rear face is at ``ego_x + offset + distance`` and the centre half a length further.
     """
     return ego_x + camera_forward_offset_m + distance_m + length_m / 2
-
-
-def road_profile(segments, camera_forward_offset_m: float, ego_x_m: float = EGO_START_X_M) -> RoadProfile | None:
-    """A scenario's ``road.profile`` in absolute road ``x``: each ``start_m`` is measured from the
-    camera at t = 0 (like a placed vehicle's ``distance_m``; ``ego_x_m``: the ego's centre then);
-    None for a level road."""
-    return RoadProfile.from_segments(segments, ego_x_m + camera_forward_offset_m)
-
-
-def road_plan(curves, camera_forward_offset_m: float, ego_x_m: float = EGO_START_X_M) -> RoadPlan | None:
-    """A scenario's ``road.curves`` in absolute road ``x`` (``start_m`` from the camera at t = 0, the ego's
-    centre then at ``ego_x_m``); None: straight."""
-    return RoadPlan.from_segments(curves, ego_x_m + camera_forward_offset_m)
 
 
 def cut_in_distance(gap_m: float, at_s: float, vehicle_speed_mps: float, ego_speed_mps: float) -> float:

@@ -19,8 +19,9 @@ import numpy as np
 from harness.world import scenario as sc
 from harness.world.scenario import ScenarioError
 from harness.simulation.events import timed_events
-from harness.simulation.placement import (
-    EGO_START_X_M, ROAD_START_MARGIN_M, Footprint, cut_in_distance, placed_centre_x, road_plan, road_profile, traffic_slots)
+from harness.simulation.placement import (ROAD_START_MARGIN_M, Footprint, cut_in_distance, placed_centre_x,
+                                          traffic_slots)
+from harness.world.road import EGO_START_X_M, road_plan, road_profile
 from harness.simulation.road import build_road, lane_centre_y
 from harness.simulation.vehicles import Clock, ScenarioVehicle, StationaryVehicle
 from harness.world.state import VehicleState, WorldState

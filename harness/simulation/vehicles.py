@@ -12,7 +12,7 @@ Units: m, s, m/s, m/s^2. Time comes from a shared :class:`Clock` (frame count / 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 from highway_env.road.road import LaneIndex, Road
@@ -22,8 +22,14 @@ from highway_env.vehicle.objects import Obstacle
 
 from harness.world import scenario as sc
 
-if TYPE_CHECKING:
-    from harness.simulation.events import TimedEvent
+
+class VehicleEvent(Protocol):
+    """What a vehicle asks of its timed events (:class:`harness.simulation.events.TimedEvent` is one)."""
+
+    def due(self, t: float) -> bool: ...
+
+    def start(self, vehicle: "ScenarioVehicle") -> None: ...
+
 
 MAX_SPEED_MPS = 60.0
 """Speed cap of scenario vehicles (the schema's bound; highway-env's default cap is 40 m/s)."""
@@ -133,7 +139,7 @@ class ScenarioVehicle(IDMVehicle):
         self.longitudinal: Longitudinal = FollowIDM() if behaviour == "idm" else Cruise(speed)
         self.enable_lane_change = self.lane_changes and behaviour == "idm"
         self.manoeuvre_lane: LaneIndex | None = None   # target of a scripted lane change in progress
-        self.events: list[TimedEvent] = []
+        self.events: list[VehicleEvent] = []
         self.lateral_offset_m = 0.0                    # steered offset from the lane centre (m, + right)
 
     def steering_control(self, target_lane_index: LaneIndex) -> float:

@@ -51,7 +51,7 @@ def axis_table(rows: Sequence[Mapping], key: str, metric: str) -> dict[str, list
 
 def axis_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Sequence[str]) -> str:
     """HTML (heading, note, one figure per axis) or "" when the sweep has no grid."""
-    from harness.sweep.report import _png
+    from harness.sweep.html import png
 
     if not grid_keys or not rows:
         return ""
@@ -95,5 +95,5 @@ def axis_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Se
         if len(table) > 1:
             axs.ravel()[0].legend(fontsize=7)
         fig.tight_layout()
-        parts.append(_png(fig))
+        parts.append(png(fig))
     return "\n".join(parts)

@@ -117,7 +117,7 @@ def _camera_for_preflight(scenarios: list[dict]):
     return Camera().model()
 
 
-def _inject_seeds(pipeline: dict, seed: int) -> dict:
+def inject_seeds(pipeline: dict, seed: int) -> dict:
     """Give every component whose factory declares ``uses_seed`` the run's seed, unless the spec set one."""
     from monorarp.detection.model_file import is_model_path
     from monorarp.pipeline.registry import get_factory, uses
@@ -213,7 +213,7 @@ def expand(spec: SweepSpec, spec_path: str | Path, annotate: bool = False) -> Ex
                                              f"(grid values that print the same?)")
                     task = RunTask(id=rid, index=len(exp.tasks), scenario_file=file, scenario_key=stem, seed=seed,
                                    grid=grid, variant=variant.name, scenario=scenario,
-                                   pipeline=_inject_seeds(pipelines[variant.name], seed), frames=spec.frames,
+                                   pipeline=inject_seeds(pipelines[variant.name], seed), frames=spec.frames,
                                    warning_threshold_s=spec.warning_threshold_s, annotate=annotate, error=error)
                     seen[rid] = task
                     exp.tasks.append(task)

@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.sweep import worker
+from harness.sweep.execution import ExecutorError, RenderOnceQueue, init_process
 from harness.sweep.expand import RunTask
 from harness.sweep.worker import RunOutcome
 
@@ -65,9 +66,8 @@ def _worker_main(conn: Connection, threads: int, parent_pid: int) -> None:
     """
     faulthandler.enable()
     _die_with_parent(parent_pid)
-    from harness.sweep.executors import _init_process
 
-    _init_process(threads)
+    init_process(threads)
     try:                     # imported before the first run starts its clock (errors show in that run)
         import harness.run.runner  # noqa: F401
         import harness.scoring.evaluate  # noqa: F401
@@ -125,7 +125,6 @@ class ProcessExecutor:
     """``workers`` local processes; see the module docstring. ``run_timeout_s``: None = no limit."""
 
     def __init__(self, workers: int, run_timeout_s: float | None = None) -> None:
-        from harness.sweep.executors import ExecutorError
 
         if workers < 1:
             raise ExecutorError(f"--workers must be >= 1, got {workers}")
@@ -144,7 +143,6 @@ class ProcessExecutor:
         return _Worker(p, ours)
 
     def run(self, tasks: Sequence[RunTask], runs_dir: Path) -> Iterator[RunOutcome]:
-        from harness.sweep.executors import RenderOnceQueue
 
         threads = max(1, (os.cpu_count() or 1) // self.workers)
         queue = RenderOnceQueue(tasks)

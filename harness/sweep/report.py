@@ -11,9 +11,7 @@ true TTC, every variant's estimate for it); tracker comparison; runtime breakdow
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -21,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from harness.sweep.html import CSS, png, table
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 
 DEFAULT_HEADLINE = ("distance.rel_err_median", "distance.abs_err_median_m", "rel_velocity.abs_err_median_mps",
@@ -31,55 +30,6 @@ REPORT_BINS = {"0-10": (0, 10), "10-20": (10, 20), "20-40": (20, 40), "40-80": (
 STAGES = ("detector", "ego_speed", "tracker", "state", "risk")
 MAX_TTC_PLOTS = 8
 CSV_COLUMNS = ["t", "gt_id", "track_id", "counted", "matched", "d_long_gt", "d_y_est", "ttc_gt", "ttc_est"]
-
-CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#1d1d1f;max-width:1400px}
-h1{font-size:22px}h2{font-size:18px;margin-top:32px;border-bottom:1px solid #ddd;padding-bottom:4px}
-table{border-collapse:collapse;font-size:12px;margin:8px 0}
-th,td{border:1px solid #d0d0d0;padding:3px 6px;text-align:right;white-space:nowrap}
-th{background:#f3f3f3}td.l,th.l{text-align:left}
-tr.failed td{background:#fde8e8}.ok{color:#137333}.bad{color:#b3261e;font-weight:600}
-.note{color:#555;font-size:13px}img{max-width:100%;height:auto}
-.scroll{overflow-x:auto}
-"""
-
-
-# ------------------------------------------------------------------ helpers
-def _fmt(v: Any) -> str:
-    if v is None:
-        return "–"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            return "–"
-        return f"{v:.4g}"
-    return str(v)
-
-
-def _table(header: Sequence[str], rows: Sequence[Sequence[Any]], left: int = 1,
-           row_classes: Sequence[str] | None = None) -> str:
-    e = html.escape
-    th = "".join(f'<th class="l">{e(h)}</th>' if i < left else f"<th>{e(h)}</th>" for i, h in enumerate(header))
-    body = []
-    for j, r in enumerate(rows):
-        cls = f' class="{row_classes[j]}"' if row_classes and row_classes[j] else ""
-        tds = "".join(f'<td class="l">{e(_fmt(v))}</td>' if i < left else f"<td>{e(_fmt(v))}</td>"
-                      for i, v in enumerate(r))
-        body.append(f"<tr{cls}>{tds}</tr>")
-    return f'<div class="scroll"><table><thead><tr>{th}</tr></thead><tbody>{"".join(body)}</tbody></table></div>'
-
-
-def _png(fig) -> str:
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight", metadata={"Software": None})
-    plt.close(fig)
-    return f'<img alt="plot" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode("ascii")}">'
-
 
 def _mean(values: Sequence[Any]) -> float | None:
     x = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)]
@@ -163,7 +113,7 @@ def distance_section(rows: Sequence[Mapping], frames: Mapping[str, Any]) -> str:
     header = ["variant"] + [h for b in REPORT_BINS for h in (f"{b} m rel. median %", "n")] + ["all rel. median %"]
     return ("<h2>Distance error against range</h2><p class='note'>Pooled over every finished run of each variant: "
             "counted, matched object-frames with a state estimate, 0 ≤ d_long &lt; 80 m.</p>"
-            + _png(fig) + _table(header, table_rows))
+            + png(fig) + table(header, table_rows))
 
 
 def _cases(rows: Sequence[Mapping]) -> dict[tuple, list[Mapping]]:
@@ -204,7 +154,7 @@ def ttc_section(rows: Sequence[Mapping], frames: Mapping[str, Any], threshold_s:
         ax.title.set_fontsize(9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-        plots.append(_png(fig))
+        plots.append(png(fig))
     head = "<h2>TTC over time against truth (risky cases)</h2>"
     if not n_risky:
         return head + f"<p class='note'>No case has a true TTC below {threshold_s:g} s.</p>"
@@ -231,7 +181,7 @@ def tracker_section(rows: Sequence[Mapping]) -> str:
                     _mean([m.get("fps") for m in ok])])
     return ("<h2>Tracker comparison</h2><p class='note'>Per variant: means over finished runs (ID switches, false "
             "positives and misses summed); identical frames and detections for every variant of a case.</p>"
-            + _table(header, out, left=3))
+            + table(header, out, left=3))
 
 
 def runtime_section(rows: Sequence[Mapping]) -> str:
@@ -255,12 +205,12 @@ def runtime_section(rows: Sequence[Mapping]) -> str:
     ax.invert_yaxis()
     ax.legend(fontsize=7, ncol=len(STAGES), loc="upper center", bbox_to_anchor=(0.5, -0.25 - 0.6 / len(variants)))
     ax.grid(alpha=0.3, axis="x")
-    table = _table(["variant", *(f"{s} ms" for s in STAGES), "total ms", "fps"],
-                   [[v, *(means[v][s] for s in STAGES), totals[v],
-                     _mean([r["metrics"].get("fps") for r in rows if r["variant"] == v and r["status"] == "ok"])]
-                    for v in variants])
+    stage_table = table(["variant", *(f"{s} ms" for s in STAGES), "total ms", "fps"],
+                         [[v, *(means[v][s] for s in STAGES), totals[v],
+                           _mean([r["metrics"].get("fps") for r in rows if r["variant"] == v and r["status"] == "ok"])]
+                          for v in variants])
     return ("<h2>Runtime breakdown</h2><p class='note'>Mean per-frame time of each stage (wall clock on the machine "
-            "that ran it; not part of any determinism or regression check).</p>" + _png(fig) + table)
+            "that ran it; not part of any determinism or regression check).</p>" + png(fig) + stage_table)
 
 
 def runs_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Sequence[str]) -> str:
@@ -268,7 +218,7 @@ def runs_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Se
     body = [[r["id"], r["scenario"], r["seed"], *(r["grid"].get(k) for k in grid_keys), r["variant"], r["status"],
              *(r["metrics"].get(m) for m in headline)] for r in rows]
     classes = ["failed" if r["status"] != "ok" else "" for r in rows]
-    return "<h2>Runs</h2>" + _table(header, body, left=2, row_classes=classes)
+    return "<h2>Runs</h2>" + table(header, body, left=2, row_classes=classes)
 
 
 def render_report(rows: Sequence[Mapping], runs_dir: Path, *, name: str, spec_path: str, grid_keys: Sequence[str],
@@ -288,7 +238,7 @@ def render_report(rows: Sequence[Mapping], runs_dir: Path, *, name: str, spec_pa
              f"<style>{CSS}</style></head><body>",
              f"<h1>Sweep {e(name)}</h1><p>spec <code>{e(spec_path)}</code> — {len(rows)} runs — {status}.</p>"]
     if failed:
-        parts.append("<h2>Failed runs</h2>" + _table(["id", "status", "error"],
+        parts.append("<h2>Failed runs</h2>" + table(["id", "status", "error"],
                                                       [[r["id"], r["status"], r["error"]] for r in failed], left=3))
     from harness.sweep.axes import axis_section
 

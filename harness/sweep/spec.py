@@ -35,7 +35,7 @@ from harness.world.scenario import Scenario
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.core.errors import UserError
 from monorarp.core.readers import read_yaml
-from monorarp.pipeline.runner import ComponentConfig, PipelineConfig
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig
 
 _DEFAULT = PipelineConfig()
 _NAME = r"^[A-Za-z0-9][A-Za-z0-9_.+\-]*$"

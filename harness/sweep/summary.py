@@ -8,8 +8,8 @@ then the run's metrics flattened to dotted names (``distance.rel_err_median``,
 settings, not measurements). Missing values are empty CSV cells / JSON null.
 
 Determinism: every metric is a pure function of the run's parameters except
-those matched by :data:`NONDETERMINISTIC` (wall-clock timings), which
-:func:`deterministic_metrics` drops before comparing executors or worker counts.
+those matched by :data:`harness.check.metrics.NONDETERMINISTIC` (wall-clock timings), which
+:func:`harness.check.metrics.deterministic_metrics` drops before comparing executors or worker counts.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from harness.check.metrics import flatten
 from harness.sweep.expand import RunTask, format_value
 from harness.sweep.worker import ERROR_JSON, METRICS_JSON, RUN_JSON
 from monorarp.app.io import write_atomic, write_json_atomic
@@ -28,31 +29,6 @@ from monorarp.core.readers import read_json_or_none
 
 SUMMARY_JSON = "summary.json"
 SUMMARY_CSV = "summary.csv"
-SKIPPED_SECTIONS = ("config", "scoring")
-NONDETERMINISTIC = ("runtime_ms.", "fps", "wall_time_s")
-
-
-def flatten(metrics: Mapping[str, Any], prefix: str = "", skip: Sequence[str] = SKIPPED_SECTIONS) -> dict[str, Any]:
-    """Nested metrics -> ``{dotted.name: number | bool | str | None}`` (lists are skipped)."""
-    out: dict[str, Any] = {}
-    for k, v in metrics.items():
-        if not prefix and k in skip:
-            continue
-        name = f"{prefix}{k}"
-        if isinstance(v, Mapping):
-            out.update(flatten(v, f"{name}.", skip))
-        elif v is None or isinstance(v, (bool, int, float, str)):
-            out[name] = None if isinstance(v, float) and not math.isfinite(v) else v
-    return out
-
-
-def is_deterministic(name: str) -> bool:
-    return not any(name == p.rstrip(".") or name.startswith(p) for p in NONDETERMINISTIC)
-
-
-def deterministic_metrics(flat: Mapping[str, Any]) -> dict[str, Any]:
-    """``flat`` without wall-clock metrics (``runtime_ms.*``, ``fps``, ``wall_time_s``)."""
-    return {k: v for k, v in flat.items() if is_deterministic(k)}
 
 
 def collect_rows(tasks: Sequence[RunTask], runs_dir: Path) -> list[dict[str, Any]]:

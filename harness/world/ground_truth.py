@@ -31,7 +31,7 @@ import numpy as np
 
 from harness.world.geometry import (ego_frame_world, road_vectors_to_ego, vehicle_corners_ego,
                                      vehicles_footprints_ego)
-from harness.render.meshes import vehicle_height
+from harness.world.vehicles import vehicle_height
 from harness.world.road_plan import path_length
 from harness.world.truth import CameraTruth, EgoTruth, FrameTruth, ObjectTruth
 from harness.world.state import WorldState

@@ -19,6 +19,7 @@ from harness.world.config_io import SAFE_NAME, Seed, validate_config
 from harness.world.road_plan import MAX_TURN_RAD, MIN_RADIUS_M
 from harness.world.road_profile import MAX_GRADE
 
+from monorarp.app.common_options import check_frames, frames_within
 from monorarp.core.camera import CameraError, CameraModel
 from monorarp.core.errors import UserError
 from monorarp.core.readers import read_yaml
@@ -342,14 +343,11 @@ class Scenario(_Model):
 
 def frames_to_simulate(scenario: Scenario, frames: int | None, source: str | Path, verb: str = "render") -> int:
     """``--frames N`` checked against ``scenario`` (1 .. duration_s * fps; None: all); :class:`UserError` otherwise."""
-    if frames is not None and frames <= 0:
-        raise UserError(f"--frames: must be a positive integer, got {frames}")
+    check_frames(frames)
     if scenario.n_frames <= 0:
         raise UserError(f"{source}: duration_s * fps gives no frames")
-    if frames is not None and frames > scenario.n_frames:
-        raise UserError(f"--frames: {frames} exceeds the scenario's {scenario.n_frames} frames "
-                        f"(duration_s * fps); raise duration_s in {source} to {verb} more")
-    return scenario.n_frames if frames is None else frames
+    return frames_within(frames, scenario.n_frames, "scenario's",
+                         f" (duration_s * fps); raise duration_s in {source} to {verb} more")
 
 
 def parse_scenario(data: Any, source: str | Path = "<scenario>") -> Scenario:

@@ -1,7 +1,7 @@
 """The command-line options that choose a pipeline's components, shared by every command that runs one.
 
 :func:`add_pipeline_options` adds them to a parser (only the stages a command lets the user choose);
-:func:`pipeline_config` turns the parsed options into a :class:`~monorarp.pipeline.runner.PipelineConfig`,
+:func:`pipeline_config` turns the parsed options into a :class:`~monorarp.pipeline.config.PipelineConfig`,
 checking every name against :mod:`monorarp.pipeline.registry` (built-ins and entry-point plug-ins alike). A stage
 without options keeps :class:`PipelineConfig`'s default, which is where every default lives, except the
 command-line defaults stated here because they differ from a bare config:
@@ -11,7 +11,8 @@ command-line defaults stated here because they differ from a bare config:
 * ``--horizon calibrated`` (the default) means no horizon stage.
 
 The TTC thresholds (the warning stage's alert, the paper's per-object cue) are defined once, in
-:mod:`monorarp.warning.thresholds`.
+:mod:`monorarp.warning.thresholds`. The other options several commands share (``--frames``, ``--out``,
+``--camera``, ``--threaded``, ``--no-video``) are in :mod:`monorarp.app.common_options`.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from typing import Any
 
 from monorarp.pipeline import registry
 from monorarp.core.errors import UserError
-from monorarp.pipeline.runner import ComponentConfig, PipelineConfig, check_weak_detections
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig, check_weak_detections
 
 STAGES = ("detector", "tracker", "state", "risk", "ego_speed", "horizon")
 CLI_EGO_SPEED = "ground_track"          # the run/video commands' ego-speed stage unless --ego-speed none

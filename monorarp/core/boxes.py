@@ -13,6 +13,8 @@ from collections.abc import Sequence
 import numpy as np
 
 Boxes = Sequence[Sequence[float]] | np.ndarray
+#: A box edge this close to the image border (px) is taken as cut by it (detection and state stages).
+BORDER_TOL_PX = 4.0
 
 
 def as_boxes(boxes: Boxes) -> np.ndarray:

@@ -135,7 +135,8 @@ class WarningState:
     """The warning stage's decision for one frame (forward-collision warning, FCW).
 
     ``active``: a warning episode is on (the driver is alerted). While active,
-    ``track_id`` is the object it is for, ``ttc`` that object's TTC (s; None when it has
+    ``track_id`` is the object it is for, ``ttc`` that object's in-path TTC by the warning
+    stage's own rules (s; not the risk stage's per-object TTC, docs/warning.md; None when it has
     none this frame, e.g. during the hold time), ``episode`` the episode's index in the
     sequence (0-based) and ``onset_t`` its start (s, frame time). ``threat_ids``: tracks
     that pass the in-path and TTC tests this frame (before hysteresis), nearest TTC first.

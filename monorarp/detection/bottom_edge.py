@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monorarp.state.geometry import BORDER_TOL_PX
+from monorarp.core.boxes import BORDER_TOL_PX
 
 
 @dataclass(frozen=True)

@@ -26,9 +26,10 @@ import math
 import numpy as np
 
 from monorarp.core.camera import CameraModel
-from monorarp.horizon.ground_profile import GroundProfile, GroundReading, march_rows, smooth_profile
+from monorarp.core.ground_profile import GroundProfile, GroundReading
+from monorarp.horizon.ground_profile import march_rows, smooth_profile
 from monorarp.core.types import HorizonReading
-from monorarp.horizon.vanishing import _angular_residual, _lines, lane_segments, vanishing_point
+from monorarp.horizon.vanishing import angular_residual, lane_segments, segment_lines, vanishing_point
 
 
 def pitch_std_px(camera: CameraModel, pitch_std_deg: float) -> float:
@@ -46,8 +47,8 @@ def row_std_px(seg: np.ndarray, u: float, v: float, inlier_deg: float = 1.5) -> 
     ``w = l / r^2``. The covariance of (u, v) is ``s^2 (J^T W J)^-1`` with J rows ``(a, b)`` and
     ``s^2`` the weighted residual variance (n - 2 degrees of freedom).
     """
-    lines, mid, length = _lines(seg)
-    inl = _angular_residual(lines, mid, u, v) < math.sin(math.radians(inlier_deg))
+    lines, mid, length = segment_lines(seg)
+    inl = angular_residual(lines, mid, u, v) < math.sin(math.radians(inlier_deg))
     if inl.sum() < 3:
         return math.inf
     a, b, c = lines[inl, 0], lines[inl, 1], lines[inl, 2]
@@ -134,8 +135,8 @@ class OnlineHorizon:
 class LaneWidthRanging:
     """The calibrated horizon plus this frame's road distance per row from the lane lines' spacing.
 
-    The state estimator reads a box's distance from the :class:`~monorarp.horizon.ground_profile.GroundProfile`
-    where the road is not the flat ground (:func:`monorarp.horizon.ground_profile.contact_ground`). Lines: the
+    The state estimator reads a box's distance from the :class:`~monorarp.core.ground_profile.GroundProfile`
+    where the road is not the flat ground (:func:`monorarp.state.ground_contact.contact_ground`). Lines: the
     near road's (``LaneLineFinder`` between ``near_m`` and ``ref_far_m``, assumed flat, where each
     line's offset is re-measured), followed from the row of ``start_m`` up to ``max_rise_deg`` above the calibrated horizon (a climb's far road lies
     above it). ``fallback_grade_std``: the grade uncertainty (rise/run) of a box above the profile.

@@ -102,7 +102,7 @@ def lane_segments(image_bgr: np.ndarray, roi_top: float = 0.5, min_length_frac: 
 
 
 # ---------------------------------------------------------------------- vanishing point
-def _lines(seg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def segment_lines(seg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unit-normal homogeneous lines (N, 3), midpoints (N, 2), lengths (N,)."""
     p1 = np.column_stack([seg[:, 0:2], np.ones(len(seg))])
     p2 = np.column_stack([seg[:, 2:4], np.ones(len(seg))])
@@ -112,7 +112,7 @@ def _lines(seg: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return lines, mid, np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1])
 
 
-def _angular_residual(lines: np.ndarray, mid: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def angular_residual(lines: np.ndarray, mid: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """sin of the angle between each segment and the ray from its midpoint to (u, v); shape (..., N)."""
     u, v = np.asarray(u, float)[..., None], np.asarray(v, float)[..., None]
     d = np.abs(lines[:, 0] * u + lines[:, 1] * v + lines[:, 2])
@@ -130,7 +130,7 @@ def vanishing_point(seg: np.ndarray, *, inlier_deg: float = 1.5, max_pairs: int 
     """
     if len(seg) < 2:
         return None
-    lines, mid, length = _lines(seg)
+    lines, mid, length = segment_lines(seg)
     leans_left = (seg[:, 2] - seg[:, 0]) * (seg[:, 3] - seg[:, 1]) < 0   # u grows as v falls: left of the VP
     L, R = np.flatnonzero(leans_left), np.flatnonzero(~leans_left)
     if len(L) == 0 or len(R) == 0:
@@ -152,7 +152,7 @@ def vanishing_point(seg: np.ndarray, *, inlier_deg: float = 1.5, max_pairs: int 
         return None
     u, v = u[ok2], v[ok2]
     thr = math.sin(math.radians(inlier_deg))
-    res = _angular_residual(lines, mid, u, v)               # (pairs, N)
+    res = angular_residual(lines, mid, u, v)               # (pairs, N)
     score = ((res < thr) * length).sum(axis=1)
     best = int(np.argmax(score))
     u0, v0 = float(u[best]), float(v[best])
@@ -175,7 +175,7 @@ def vanishing_point(seg: np.ndarray, *, inlier_deg: float = 1.5, max_pairs: int 
         u0, v0 = float(u1), float(v1)
         if done:
             break
-    final = _angular_residual(lines, mid, u0, v0) < thr
+    final = angular_residual(lines, mid, u0, v0) < thr
     return VanishingPoint(u0, v0, int(final.sum()), int((final & leans_left).sum()), int((final & ~leans_left).sum()))
 
 

@@ -10,7 +10,7 @@ from monorarp.detection.model_file import is_model_path, load_model_file
 from monorarp.pipeline import registry
 
 if TYPE_CHECKING:
-    from monorarp.pipeline.runner import ComponentConfig
+    from monorarp.pipeline.config import ComponentConfig
 
 
 def build_detector(component: "ComponentConfig", camera: Any = None) -> Detector:

@@ -11,10 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from monorarp.core.boxes import area, intersection
+from monorarp.core.boxes import BORDER_TOL_PX, area, intersection
 from monorarp.core.camera import CameraModel
-
-BORDER_TOL_PX = 4.0   # a box edge this close to the image border (px) is taken as cut by it
 
 
 # --------------------------------------------------------------------- the paper's formulas
@@ -70,7 +68,7 @@ def box_distance(camera: CameraModel, boxes: np.ndarray, contact_offset_m: float
     NaN for boxes not below the horizon and for boxes whose bottom edge touches the
     image's bottom border (truncated: their real bottom edge is out of view). ``ground_y`` (M,):
     the ground distance (m) of each bottom row from elsewhere (a measured road profile,
-    :func:`monorarp.horizon.ground_profile.contact_ground`); None: the flat ground's.
+    :func:`monorarp.state.ground_contact.contact_ground`); None: the flat ground's.
     """
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     v_b = b[:, 3]

@@ -6,17 +6,9 @@ import argparse
 import math
 from pathlib import Path
 
+from monorarp.app.common_options import (add_camera_option, add_frames_option, add_no_video_option, add_out_option,
+                                         add_threaded_option)
 from monorarp.app.options import add_pipeline_options
-
-
-def _positive_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {n}")
-    return n
 
 
 def _speed(text: str) -> float:
@@ -43,20 +35,19 @@ def register_video(sub: argparse._SubParsersAction) -> None:
                     "DIR/predictions.jsonl (per frame: tracks with box, d_x, d_y, v_x, v_y, TTC; risk; ego "
                     "speed), DIR/annotated.mp4 and DIR/run.json; the directory appears complete or not at all.")
     p.add_argument("input", metavar="INPUT", help="video file, or webcam index (an integer)")
-    p.add_argument("--camera", required=True, type=Path, metavar="CAMERA.yaml",
-                   help="camera file (YAML or JSON: resolution, intrinsics, mounting height, pitch or horizon_row)")
+    add_camera_option(p, help="camera file (YAML or JSON: resolution, intrinsics, mounting height, pitch or "
+                              "horizon_row)")
     add_pipeline_options(p)
     p.add_argument("--speed", type=_speed, default=None, metavar="MPS",
                    help="known ego speed (m/s, e.g. GPS): used by the Monte Carlo risk when the ego-speed "
                         "estimator has no value, and reported as ego_speed then")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="output directory (default: runs/video-<input name>; a previous run there is replaced)")
+    add_out_option(p, help="output directory (default: runs/video-<input name>; a previous run there is replaced)")
     p.add_argument("--display", action="store_true",
                    help="show annotated frames in a window (needs a screen and OpenCV with GUI support; "
                         "q or Esc stops early)")
-    p.add_argument("--max-frames", type=_positive_int, default=None, metavar="N", help="stop after N frames")
-    p.add_argument("--no-video", action="store_true", help="do not write annotated.mp4")
-    p.add_argument("--threaded", action="store_true", help="one thread per pipeline stage (as in the paper)")
+    add_frames_option(p, help="stop after N frames (default: all)", hidden_aliases=("--max-frames",))
+    add_no_video_option(p, help="do not write annotated.mp4")
+    add_threaded_option(p)
     p.set_defaults(func=video_command)
 
 
@@ -67,7 +58,7 @@ def video_command(args: argparse.Namespace) -> int:
 
     # names are checked by run_video, after the camera and the input (one error at a time, in that order)
     options = VideoRunOptions(pipeline=pipeline_config(args, check=False), speed_mps=args.speed, threaded=args.threaded,
-                              max_frames=args.max_frames, write_video=not args.no_video, display=args.display)
+                              max_frames=args.frames, write_video=not args.no_video, display=args.display)
     out = args.out if args.out is not None else _default_out(args.input)
     try:
         summary = run_video(args.input, args.camera, out, options)
@@ -89,10 +80,8 @@ def register_calibrate(sub: argparse._SubParsersAction) -> None:
                     "+ reweighted least squares, combined over frames) of a video taken on a straight, flat "
                     "road, and print horizon_row and the pitch_deg to put in the camera file.")
     p.add_argument("input", metavar="INPUT", help="video file, or webcam index (an integer)")
-    p.add_argument("--camera", required=True, type=Path, metavar="CAMERA.yaml",
-                   help="camera file (its fy and cy turn the row into a pitch)")
-    p.add_argument("--frames", type=_positive_int, default=150, metavar="N",
-                   help="frames to use from the start (default 150)")
+    add_camera_option(p, help="camera file (its fy and cy turn the row into a pitch)")
+    add_frames_option(p, default=150, help="frames to use from the start (default 150)")
     p.set_defaults(func=calibrate_command)
 
 

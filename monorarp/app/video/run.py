@@ -39,11 +39,13 @@ import cv2
 import numpy as np
 
 from monorarp.core.camera import CameraModel
+from monorarp.app.common_options import check_frames
 from monorarp.app.options import default_pipeline_config
 from monorarp.detection.model_file import is_model_path
 from monorarp.core.errors import UserError
 from monorarp.app.io import JsonlWriter, atomic_output_dir, write_json_atomic
-from monorarp.pipeline.runner import ComponentConfig, Pipeline, PipelineConfig, run_sync, run_threaded
+from monorarp.pipeline.config import ComponentConfig, PipelineConfig
+from monorarp.pipeline.runner import Pipeline, run_sync, run_threaded
 from monorarp.pipeline.registry import get_factory, uses
 from monorarp.core.types import Frame, FrameResult
 from monorarp.app.video.source import VideoInfo, VideoSource
@@ -186,8 +188,7 @@ def run_video(input_spec: str | int | Path, camera: CameraModel | str | Path, ou
     if options.display:
         check_display()
     cam = camera if isinstance(camera, CameraModel) else CameraModel.load(camera)
-    if options.max_frames is not None and options.max_frames < 1:
-        raise UserError(f"--max-frames must be at least 1, got {options.max_frames}")
+    check_frames(options.max_frames)
     if options.speed_mps is not None and not (np.isfinite(options.speed_mps) and options.speed_mps >= 0):
         raise UserError(f"--speed must be a non-negative speed in m/s, got {options.speed_mps}")
     with VideoSource(input_spec) as source:

@@ -9,16 +9,18 @@ sources, backends and determinism: docs/monte_carlo_risk.md.
 
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import replace
-from typing import Literal
+from typing import Any
 
 import numpy as np
 
-from monorarp.core.errors import UserError
-from monorarp.risk.monte_carlo.drivers import ROW_NV, ROW_NX, ROW_NY, DriverDistribution, DriverParams
-from monorarp.risk.monte_carlo.rollout import EGO_MODELS, MAX_VEHICLES, RolloutConfig, RolloutResult, Scene, simulate
-from monorarp.risk.monte_carlo.scene import Geometry, Noise, lane_of, lane_range, road_positions
+from monorarp.core.camera import CameraModel
+from monorarp.risk.monte_carlo.config import BACKENDS, MonteCarloConfig, MonteCarloConfigError, monte_carlo_config
+from monorarp.risk.monte_carlo.drivers import ROW_NV, ROW_NX, ROW_NY, DriverParams
+from monorarp.risk.monte_carlo.rollout import MAX_VEHICLES, RolloutConfig, RolloutResult, Scene, simulate
+from monorarp.risk.monte_carlo.scene import Geometry, lane_of, lane_range, road_positions
 from monorarp.core.types import ObjectState, RiskEstimate
 
 FALLBACK_EGO_SPEED_MPS = 25.0
@@ -29,11 +31,6 @@ MAX_RANGE_M = 1000.0
 MAX_LATERAL_M = 100.0
 MAX_SPEED_MPS = 150.0
 _EGO_KEY = -1
-BACKENDS = ("auto", "numba", "numpy")
-
-
-class MonteCarloConfigError(UserError, ValueError):
-    """A bad setting of :class:`MonteCarloRisk` (names the setting, the value and the reason)."""
 
 
 def usable_state(s: ObjectState) -> bool:
@@ -64,6 +61,13 @@ def resolve_backend(backend: str) -> str:
 class MonteCarloRisk:
     """IDM/MOBIL Monte Carlo collision risk. ``assess(states, t, ego_speed=None) -> RiskEstimate``.
 
+    Settings: :class:`~monorarp.risk.monte_carlo.config.MonteCarloConfig` (defaults, ranges, units),
+    given as ``config`` and/or as keyword ``overrides`` of its fields (the names the registry's
+    ``kwargs`` and a sweep variant's ``risk_kwargs`` use); a bad one raises
+    :class:`~monorarp.risk.monte_carlo.config.MonteCarloConfigError` naming it. ``camera``: the run's
+    camera, whose mounting offsets replace ``camera_forward_offset_m`` / ``camera_lateral_offset_m``.
+    ``self.config`` is the settings in use, ``self.rollout_config`` the simulation's.
+
     ``dt`` defaults to 0.2 s: IDM/MOBIL are smooth at that step (Treiber &
     Kesting report ballistic IDM stable and accurate up to ~0.5 s), a 1 s
     near-miss window is sampled 5 times, no contact can be missed (each step's
@@ -79,72 +83,39 @@ class MonteCarloRisk:
     uses_seed = True     # a sweep passes the run's seed
     uses_ego_speed = True   # its result depends on the ego speed it is given
 
-    def __init__(
-        self,
-        n_rollouts: int = 500,
-        horizon_s: float = 10.0,
-        dt: float = 0.2,
-        seed: int = 0,
-        lane_width_m: float = 3.7,
-        ego_speed_mps: float | None = None,
-        vehicle_length_m: float = 4.5,
-        vehicle_width_m: float = 1.8,
-        ego_length_m: float = 4.5,
-        ego_width_m: float = 1.8,
-        camera_forward_offset_m: float = 0.0,
-        camera_lateral_offset_m: float = 0.0,
-        camera=None,
-        near_miss_ttc_s: float = 1.0,
-        score: Literal["probability", "inverse_ttc"] = "probability",
-        lanes_left: int | None = None,
-        lanes_right: int | None = None,
-        ego_lane_changes: bool = True,
-        lateral_lookahead_s: float = 1.0,
-        mobil_interval_s: float = 1.0,
-        lane_change_duration_s: float = 3.0,
-        lane_change_cooldown_s: float = 4.0,
-        decel_limit_mps2: float = 8.0,
-        noise: Noise | dict | None = None,
-        drivers: DriverDistribution | None = None,
-        dtype: str = "float32",
-        backend: Literal["auto", "numba", "numpy"] = "auto",
-        warm_up: bool = True,
-        ego_model: Literal["idm", "constant_speed"] = "idm",
-    ) -> None:
-        if n_rollouts < 1:
-            raise MonteCarloConfigError(f"n_rollouts must be >= 1, got {n_rollouts}")
-        if score not in ("probability", "inverse_ttc"):
-            raise MonteCarloConfigError(f"score must be 'probability' or 'inverse_ttc', got {score!r}")
-        if ego_model not in EGO_MODELS:
-            raise MonteCarloConfigError(f"ego_model must be one of {EGO_MODELS}, got {ego_model!r}")
-        self.backend = resolve_backend(backend)   # the one in use: "numba" or "numpy"
+    def __init__(self, camera: CameraModel | None = None, config: MonteCarloConfig | None = None,
+                 **overrides: Any) -> None:
+        cfg = monte_carlo_config(config, overrides)
+        if camera is not None:  # a CameraModel: take its mounting offsets
+            cfg = monte_carlo_config(cfg, {"camera_forward_offset_m": camera.forward_offset_m,
+                                           "camera_lateral_offset_m": camera.lateral_offset_m})
+        self.config = cfg
+        self.backend = resolve_backend(cfg.backend)   # the one in use: "numba" or "numpy"
         self._simulate = simulate
         if self.backend == "numba":
             from monorarp.risk.monte_carlo import rollout_numba
             self._simulate = rollout_numba.simulate_numba
-            if warm_up:
+            if cfg.warm_up:
                 rollout_numba.warm_up()
-        if camera is not None:  # a CameraModel: take its mounting offsets
-            camera_forward_offset_m = camera.forward_offset_m
-            camera_lateral_offset_m = camera.lateral_offset_m
-        self.n_rollouts = int(n_rollouts)
-        self.seed = int(seed)
-        self.score = score
-        self.ego_speed_mps = ego_speed_mps
-        self.lanes_left, self.lanes_right = lanes_left, lanes_right
-        self.ego_model = ego_model
-        self.ego_lane_changes = ego_lane_changes and ego_model == "idm"
-        self.lateral_lookahead_s = lateral_lookahead_s
-        self.geometry = Geometry(vehicle_length_m, vehicle_width_m, ego_length_m, ego_width_m,
-                                 camera_forward_offset_m, camera_lateral_offset_m, lane_width_m)
-        self.noise = Noise(**noise) if isinstance(noise, dict) else (noise or Noise())
-        self.drivers = drivers or DriverDistribution()
-        self.config = RolloutConfig(dt=dt, horizon_s=horizon_s, lane_width_m=lane_width_m,
-                                    mobil_interval_s=mobil_interval_s,
-                                    lane_change_duration_s=lane_change_duration_s,
-                                    lane_change_cooldown_s=lane_change_cooldown_s,
-                                    decel_limit_mps2=decel_limit_mps2, near_miss_ttc_s=near_miss_ttc_s,
-                                    dtype=dtype, ego_model=ego_model)
+        self.n_rollouts = cfg.n_rollouts
+        self.seed = cfg.seed
+        self.score = cfg.score
+        self.ego_speed_mps = cfg.ego_speed_mps
+        self.lanes_left, self.lanes_right = cfg.lanes_left, cfg.lanes_right
+        self.ego_model = cfg.ego_model
+        self.ego_lane_changes = cfg.ego_lane_changes and cfg.ego_model == "idm"
+        self.lateral_lookahead_s = cfg.lateral_lookahead_s
+        self.geometry = Geometry(cfg.vehicle_length_m, cfg.vehicle_width_m, cfg.ego_length_m, cfg.ego_width_m,
+                                 cfg.camera_forward_offset_m, cfg.camera_lateral_offset_m, cfg.lane_width_m)
+        self.noise = cfg.noise
+        self.drivers = cfg.drivers
+        self.rollout_config = RolloutConfig(dt=cfg.dt, horizon_s=cfg.horizon_s, lane_width_m=cfg.lane_width_m,
+                                            mobil_interval_s=cfg.mobil_interval_s,
+                                            lane_change_duration_s=cfg.lane_change_duration_s,
+                                            lane_change_cooldown_s=cfg.lane_change_cooldown_s,
+                                            decel_limit_mps2=cfg.decel_limit_mps2,
+                                            near_miss_ttc_s=cfg.near_miss_ttc_s, dtype=cfg.dtype,
+                                            ego_model=cfg.ego_model)
         self._fed_ego_speed: float | None = None
         self._blocks: dict[int, np.ndarray] = {}
         self.ego_speed_source = "none"
@@ -226,15 +197,29 @@ class MonteCarloRisk:
         ids = self.simulated_ids(states)
         scene, params = self.build(states, v_e)
         lo, hi = self._lanes
-        res = self._simulate(scene, params, replace(self.config, lane_min=lo, lane_max=hi))
+        res = self._simulate(scene, params, replace(self.rollout_config, lane_min=lo, lane_max=hi))
         self.last_result = res
         conflict = res.conflict_t[:, 1:]
         if self.score == "probability":
             risk = float(np.isfinite(conflict).any(axis=1).mean())
         else:
-            t_hit = np.maximum(res.collision_t[:, 1:].min(axis=1), self.config.dt)
+            t_hit = np.maximum(res.collision_t[:, 1:].min(axis=1), self.rollout_config.dt)
             risk = float(np.mean(1.0 / t_hit))       # 1 / inf = 0 for rollouts without a collision
         med = np.median(conflict, axis=0)
         ttc = {tid: None for tid in sorted(states)}
         ttc.update({tid: (float(m) if np.isfinite(m) else None) for tid, m in zip(ids, med)})
         return RiskEstimate(risk=risk, ttc=ttc, kind=self.score)
+
+
+def _signature() -> inspect.Signature:
+    """``MonteCarloRisk(camera=None, config=None, *, <every MonteCarloConfig field>=default)``: the keywords
+    ``**overrides`` takes, shown by ``inspect.signature`` (and ``help``), which the registry reads."""
+    P = inspect.Parameter
+    params = [P("camera", P.POSITIONAL_OR_KEYWORD, default=None, annotation="CameraModel | None"),
+              P("config", P.POSITIONAL_OR_KEYWORD, default=None, annotation="MonteCarloConfig | None")]
+    params += [P(name, P.KEYWORD_ONLY, default=f.get_default(call_default_factory=True), annotation=f.annotation)
+               for name, f in MonteCarloConfig.model_fields.items()]
+    return inspect.Signature(params, return_annotation=None)
+
+
+MonteCarloRisk.__signature__ = _signature()
