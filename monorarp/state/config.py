@@ -50,9 +50,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from monorarp.core.errors import UserError
+from monorarp.core.settings import with_overrides
 
 
 class StateConfigError(UserError, ValueError):
@@ -167,22 +168,4 @@ class StateConfig(BaseModel):
 
 def state_config(base: StateConfig | None = None, overrides: Mapping[str, Any] | None = None) -> StateConfig:
     """``base`` (default: the defaults) with ``overrides`` validated in; :class:`StateConfigError` if bad."""
-    if base is not None and not isinstance(base, StateConfig):
-        raise StateConfigError(f"state config must be a StateConfig or None, got {type(base).__name__}")
-    base = StateConfig() if base is None else base
-    if not overrides:
-        return base
-    try:
-        return StateConfig.model_validate({**base.model_dump(), **overrides})
-    except ValidationError as e:
-        raise StateConfigError(_one_line(e)) from None
-
-
-def _one_line(e: ValidationError) -> str:
-    """The first error of ``e`` as ``state setting NAME: problem, got VALUE``."""
-    err = e.errors()[0]
-    name = str(err["loc"][0]) if err["loc"] else "?"    # the field (a union's member names dropped)
-    if err["type"] == "extra_forbidden":
-        known = ", ".join(StateConfig.model_fields)
-        return f"unknown state setting {name!r}; settings: {known}"
-    return f"state setting {name}: {err['msg'].lower()}, got {err.get('input')!r}"
+    return with_overrides(StateConfig, base, overrides, "state", StateConfigError)

@@ -48,9 +48,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
 from monorarp.core.errors import UserError
+from monorarp.core.settings import with_overrides
 from monorarp.warning.thresholds import FCW_THRESHOLD_S
 
 
@@ -131,20 +132,4 @@ class WarningConfig(BaseModel):
 
 def warning_config(base: WarningConfig | None = None, overrides: Mapping[str, Any] | None = None) -> WarningConfig:
     """``base`` (default: the defaults) with ``overrides`` validated in; :class:`WarningConfigError` if bad."""
-    base = WarningConfig() if base is None else base
-    if not overrides:
-        return base
-    try:
-        return WarningConfig.model_validate({**base.model_dump(), **overrides})
-    except ValidationError as e:
-        raise WarningConfigError(_one_line(e)) from None
-
-
-def _one_line(e: ValidationError) -> str:
-    """The first error of ``e`` as ``warning setting NAME: problem, got VALUE``."""
-    err = e.errors()[0]
-    name = ".".join(str(p) for p in err["loc"]) or "?"
-    if err["type"] == "extra_forbidden":
-        known = ", ".join(WarningConfig.model_fields)
-        return f"unknown warning setting {name!r}; settings: {known}"
-    return f"warning setting {name}: {err['msg'].lower()}, got {err.get('input')!r}"
+    return with_overrides(WarningConfig, base, overrides, "warning", WarningConfigError)

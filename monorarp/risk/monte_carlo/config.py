@@ -13,9 +13,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, InstanceOf, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, InstanceOf, field_validator
 
 from monorarp.core.errors import UserError
+from monorarp.core.settings import with_overrides
 from monorarp.risk.monte_carlo.drivers import DriverDistribution
 from monorarp.risk.monte_carlo.scene import Noise
 
@@ -104,28 +105,4 @@ class MonteCarloConfig(BaseModel):
 def monte_carlo_config(base: MonteCarloConfig | None = None,
                        overrides: Mapping[str, Any] | None = None) -> MonteCarloConfig:
     """``base`` (default: the defaults) with ``overrides`` validated in; :class:`MonteCarloConfigError` if bad."""
-    if base is not None and not isinstance(base, MonteCarloConfig):
-        raise MonteCarloConfigError(f"monte_carlo risk config must be a MonteCarloConfig, got {type(base).__name__}")
-    if base is not None and not overrides:
-        return base
-    try:
-        return MonteCarloConfig.model_validate({**(dict(base) if base is not None else {}), **(overrides or {})})
-    except ValidationError as e:
-        raise MonteCarloConfigError(_one_line(e)) from None
-
-
-def _one_line(e: ValidationError) -> str:
-    """The first error of ``e`` as ``monte_carlo risk setting NAME: problem, got VALUE``."""
-    err = e.errors()[0]
-    name = ".".join(str(p) for p in err["loc"]) or "?"
-    if err["type"] == "extra_forbidden":
-        known = ", ".join(MonteCarloConfig.model_fields)
-        return f"unknown monte_carlo risk setting {name!r}; settings: {known}"
-    msg = err["msg"].removeprefix("Value error, ")
-    return f"monte_carlo risk setting {name}: {msg[:1].lower() + msg[1:]}, got {_shown(err.get('input'))}"
-
-
-def _shown(value: Any, limit: int = 80) -> str:
-    """``repr(value)``, shortened to one short line."""
-    text = repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    return with_overrides(MonteCarloConfig, base, overrides, "monte_carlo risk", MonteCarloConfigError)
