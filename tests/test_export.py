@@ -317,10 +317,7 @@ def test_bad_input_one_line_exit_2_nothing_written(exported, tmp_path, capsys):
     ]
     for args, needle in cases:
         out = tmp_path / "out"
-        try:
-            rc = main(["export", *args, "--out", str(out)])
-        except SystemExit as e:   # refused while the command line is parsed
-            rc = e.code
+        rc = main(["export", *args, "--out", str(out)])
         err = capsys.readouterr().err
         assert rc == 2, (args, err)
         assert needle in err and len(err.strip().splitlines()) == 1, (args, err)

@@ -415,10 +415,7 @@ def test_bad_options(tmp_path, capsys):
     ds = write_object_dataset(tmp_path / "ok")
     for args, needle in ((["--camera-height", "-1"], "--camera-height"), (["--detector", "nosuch"], "nosuch"),
                          (["--frames", "0"], "--frames"), (["--detector", "missing.onnx"], "missing.onnx")):
-        try:
-            rc = main(["eval", "kitti", str(ds), "--out", str(tmp_path / "o"), *args])
-        except SystemExit as e:   # refused while the command line is parsed
-            rc = e.code
+        rc = main(["eval", "kitti", str(ds), "--out", str(tmp_path / "o"), *args])
         err = capsys.readouterr().err.strip()
         assert rc == 2 and len(err.splitlines()) == 1 and needle in err, (args, err)
         assert not (tmp_path / "o").exists()

@@ -163,10 +163,7 @@ def scenario_file(tmp_path):
 ])
 def test_bad_input_exits_2_and_writes_nothing(scenario_file, tmp_path, capsys, extra, message):
     out = tmp_path / "out"
-    try:
-        rc = main(["run", str(scenario_file), "--out", str(out), *extra])
-    except SystemExit as e:   # refused while the command line is parsed
-        rc = e.code
+    rc = main(["run", str(scenario_file), "--out", str(out), *extra])
     assert rc == 2
     err = capsys.readouterr().err.strip()
     assert message in err and len(err.splitlines()) == 1

@@ -55,10 +55,7 @@ BAD = [
 
 
 def _run(capsys, args):
-    try:
-        rc = main(args)
-    except SystemExit as e:   # refused while the command line is parsed
-        rc = e.code
+    rc = main(args)
     err = capsys.readouterr().err
     return rc, err
 

@@ -281,10 +281,7 @@ def test_cli_bad_options_one_line_nothing_written(tmp_path, capsys, argv, needle
     from monorarp.app.cli import main
 
     out = tmp_path / "out"
-    try:
-        rc = main(["scorecard", *argv, "--out", str(out)])
-    except SystemExit as e:   # refused while the command line is parsed
-        rc = e.code
+    rc = main(["scorecard", *argv, "--out", str(out)])
     assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0], err

@@ -138,7 +138,12 @@ def _sigterm_unwinds() -> Iterator[None]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args, unknown = parser.parse_known_args(argv)
+    try:
+        args, unknown = parser.parse_known_args(argv)
+    except SystemExit as e:   # argparse refused a value (one line printed) or printed --help (code 0)
+        if e.code in (0, None):
+            raise
+        return e.code if isinstance(e.code, int) else 2
     if unknown:   # named after the sub-command they were given to (argparse names the top level)
         sub = f"monorarp {args.command}" if getattr(args, "command", None) else "monorarp"
         print(f"{sub}: error: unrecognized arguments: {' '.join(unknown)} (see {sub} --help)", file=sys.stderr)
