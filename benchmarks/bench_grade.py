@@ -21,7 +21,6 @@ see docs/road_profile.md); relative errors divide by ``d_long``; ``bias`` is the
 from __future__ import annotations
 
 import json
-import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -85,7 +84,6 @@ def main(sweep: str) -> int:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        print("usage: python benchmarks/bench_grade.py SWEEP_DIR", file=sys.stderr)
-        sys.exit(2)
-    sys.exit(main(sys.argv[1]))
+    from _common import sweep_dir_main
+
+    sweep_dir_main(main, "bench_grade.py")

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import re
-import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -75,7 +74,6 @@ def main(sweep: str) -> int:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        print("usage: python benchmarks/bench_pitch.py SWEEP_DIR", file=sys.stderr)
-        sys.exit(2)
-    sys.exit(main(sys.argv[1]))
+    from _common import sweep_dir_main
+
+    sweep_dir_main(main, "bench_pitch.py")

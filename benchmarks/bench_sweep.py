@@ -31,6 +31,13 @@ sys.path.insert(0, str(ROOT))
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 
+def add_spec_options(ap: argparse.ArgumentParser) -> None:
+    """The options ``write_spec`` reads besides ``--seeds`` and ``--frames``: scenario, detector, tracker."""
+    ap.add_argument("--scenario", default="scenarios/highway_cruise.yaml")
+    ap.add_argument("--detector", default="oracle")
+    ap.add_argument("--tracker", default="particle")
+
+
 def write_spec(tmp: Path, args: argparse.Namespace, trackers: list[str] | None = None, name: str = "bench") -> Path:
     """A sweep spec: ``args.scenario`` x ``args.seeds`` seeds x one variant per tracker (default ``args.tracker``)."""
     spec = {"name": name, "scenarios": [{"file": str((ROOT / args.scenario).resolve()),
@@ -66,9 +73,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--seeds", type=int, default=4, help="runs per configuration (one per seed)")
     ap.add_argument("--frames", type=int, default=60, help="frames per run")
-    ap.add_argument("--scenario", default="scenarios/highway_cruise.yaml")
-    ap.add_argument("--detector", default="oracle")
-    ap.add_argument("--tracker", default="particle")
+    add_spec_options(ap)
     ap.add_argument("--ray", action="store_true", help="also run each worker count on a local Ray instance")
     ap.add_argument("--cache", default="off", metavar="DIR|off", help="frame cache (default off)")
     args = ap.parse_args()

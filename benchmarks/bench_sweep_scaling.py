@@ -35,7 +35,7 @@ import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_sweep import bench, write_spec  # noqa: E402  (sets sys.path for the repository and PYOPENGL_PLATFORM)
+from bench_sweep import add_spec_options, bench, write_spec  # noqa: E402  (sets sys.path for the repository and PYOPENGL_PLATFORM)
 
 from harness.bench.script import run_script
 
@@ -124,9 +124,7 @@ def main() -> None:
                     default=[w for w in (1, 2, 4, 8, 16, 32, 64) if w <= max(2, cpus)])
     ap.add_argument("--seeds", type=int, default=8, help="runs of the scaling sweep (one per seed)")
     ap.add_argument("--frames", type=int, default=30, help="frames per run")
-    ap.add_argument("--scenario", default="scenarios/highway_cruise.yaml")
-    ap.add_argument("--detector", default="oracle")
-    ap.add_argument("--tracker", default="particle")
+    add_spec_options(ap)
     ap.add_argument("--ray", action="store_true", help="also run each worker count on a local Ray instance")
     ap.add_argument("--variants", nargs="+", default=["particle", "sort", "bytetrack"],
                     help="trackers of the render-once sweep, one variant each")

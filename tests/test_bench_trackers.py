@@ -17,18 +17,10 @@ from monorarp.app.cli import main
 from monorarp.core.errors import UserError
 from monorarp.pipeline.config import ComponentConfig, PipelineConfig
 from monorarp.tracking.particle import ParticleTracker
+from synthetic import tiny_scenario, vehicle
 
 N_FRAMES = 8
-SCENARIO = {
-    "name": "bench_test", "seed": 1, "duration_s": 1.0, "fps": 15,
-    "road": {"lanes": 3}, "traffic": {"vehicles_count": 0},
-    "ego": {"lane": 1, "speed_mps": 25},
-    "vehicles": [
-        {"name": "lead", "lane": 0, "distance_m": 14, "speed_mps": 22, "behaviour": "constant_speed"},
-        {"name": "left", "lane": -1, "distance_m": 20, "speed_mps": 26, "behaviour": "constant_speed"},
-    ],
-    "camera": {"width": 320, "height": 180},
-}
+SCENARIO = tiny_scenario("bench_test", 1, [vehicle("lead", 0, 14, 22), vehicle("left", -1, 20, 26)])
 
 
 class Recording(ParticleTracker):

@@ -19,6 +19,7 @@ import yaml
 from monorarp.core.camera import CameraModel
 from monorarp.app.cli import main
 from monorarp.app.video.writer import read_video
+from synthetic import write_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 N_FRAMES = 5
@@ -57,9 +58,7 @@ def _small_scenario(tmp: Path) -> Path:
         cam["focal_px"] = cam["focal_px"] * scale
     cam.update(width=W, height=H)
     data["camera"] = cam
-    path = tmp / "small_static.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False))
-    return path
+    return write_scenario(tmp / "small_static.yaml", data)
 
 
 @pytest.fixture(scope="module")

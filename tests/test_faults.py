@@ -118,14 +118,20 @@ def check_failed_then_resume(case, out: Path, cause: str, before: dict[str, dict
     assert leftovers(out) == []
 
 
-def test_worker_killed_mid_run(case, tmp_path, monkeypatch, capsys):
-    """SIGKILL of a worker process after it wrote its run's files, before it committed them."""
+def fault_then_resume(case, tmp_path, monkeypatch, capsys, fault, message):
+    """FIRST prefilled, a two-worker --resume sweep under MONORARP_FAULT=`fault` fails (rc 1), then resumes."""
     out = tmp_path / "out"
     before = {FIRST: prefilled(case, out)}
-    monkeypatch.setenv("MONORARP_FAULT", f"kill:{VICTIM}")
+    monkeypatch.setenv("MONORARP_FAULT", fault)
     assert sweep(case[0], out, "--resume", "--workers", "2") == 1
     monkeypatch.delenv("MONORARP_FAULT")
-    check_failed_then_resume(case, out, "worker process died (killed by SIGKILL)", before, capsys)
+    check_failed_then_resume(case, out, message, before, capsys)
+
+
+def test_worker_killed_mid_run(case, tmp_path, monkeypatch, capsys):
+    """SIGKILL of a worker process after it wrote its run's files, before it committed them."""
+    fault_then_resume(case, tmp_path, monkeypatch, capsys, f"kill:{VICTIM}",
+                      "worker process died (killed by SIGKILL)")
 
 
 def test_native_crash_is_retried_once(case, tmp_path, monkeypatch, capsys):
@@ -144,12 +150,8 @@ def test_native_crash_is_retried_once(case, tmp_path, monkeypatch, capsys):
 
 def test_native_crash_twice_fails_the_run(case, tmp_path, monkeypatch, capsys):
     """A run whose worker crashes again in the retry fails with the cause; --resume completes it."""
-    out = tmp_path / "out"
-    before = {FIRST: prefilled(case, out)}
-    monkeypatch.setenv("MONORARP_FAULT", f"segv:{VICTIM}")
-    assert sweep(case[0], out, "--resume", "--workers", "2") == 1
-    monkeypatch.delenv("MONORARP_FAULT")
-    check_failed_then_resume(case, out, "worker process died (killed by SIGSEGV), twice", before, capsys)
+    fault_then_resume(case, tmp_path, monkeypatch, capsys, f"segv:{VICTIM}",
+                      "worker process died (killed by SIGSEGV), twice")
 
 
 def test_hung_run_times_out(case, tmp_path, monkeypatch, capsys):

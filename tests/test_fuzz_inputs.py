@@ -168,6 +168,17 @@ def assert_nothing_written(work: Path, before: list, out: Path | None = None) ->
     assert _tree(work) == before, "files appeared or changed in the working directory"
 
 
+def rejected_without_writing(work: Path, capsys, argv_for, command: str, names: list[str]) -> None:
+    """``monorarp <argv_for(out)>`` (out = work/out) fails with a one-line error naming one of ``names`` and
+    writes nothing, neither ``out`` nor anything in ``work``; then ``work`` is removed."""
+    out = work / "out"
+    before = _tree(work)
+    rc, o, e = invoke(argv_for(out), capsys)
+    assert_one_line_error(rc, o, e, command, names)
+    assert_nothing_written(work, before, out)
+    shutil.rmtree(work)
+
+
 def valid_with(loader, *args) -> bool:
     """True when ``loader(*args)`` accepts the input; False for a UserError; an unexpected exception counts as
     not valid (the CLI call then shows it)."""
@@ -194,16 +205,11 @@ def test_scenario_file(base, capsys, doc: Doc, command: str):
     path = materialise(doc, work, "scenario.yaml")
     assume(not valid_with(load_scenario, path))
     COUNTS["scenario"] += 1
-    out = work / "out"
-    before = _tree(work)
-    argv = {"render": ["render", str(path), "--out", str(out)],
-            "run": ["run", str(path), "--out", str(out), "--detector", "oracle"],
-            "bench": ["bench", "trackers", "--scenarios", str(path), "--trackers", "sort", "--detector", "oracle",
-                      "--out", str(out)]}[command]
-    rc, o, e = invoke(argv, capsys)
-    assert_one_line_error(rc, o, e, "bench" if command == "bench" else command, names_for(path))
-    assert_nothing_written(work, before, out)
-    shutil.rmtree(work)
+    rejected_without_writing(work, capsys, lambda out: {
+        "render": ["render", str(path), "--out", str(out)],
+        "run": ["run", str(path), "--out", str(out), "--detector", "oracle"],
+        "bench": ["bench", "trackers", "--scenarios", str(path), "--trackers", "sort", "--detector", "oracle",
+                  "--out", str(out)]}[command], "bench" if command == "bench" else command, names_for(path))
 
 
 # ------------------------------------------------------------------------------ sweep spec
@@ -217,13 +223,9 @@ def test_sweep_spec(base, capsys, doc: Doc):
     path = materialise(doc, work, "spec.yaml")
     assume(not valid_with(load_and_expand, path))
     COUNTS["sweep spec"] += 1
-    out = work / "out"
-    before = _tree(work)
-    rc, o, e = invoke(["sweep", str(path), "--out", str(out), "--no-progress"], capsys)
     # a spec's error may name a scenario file it references instead of the spec itself
-    assert_one_line_error(rc, o, e, "sweep", names_for(path) + ["quick.yaml", "--out"])
-    assert_nothing_written(work, before, out)
-    shutil.rmtree(work)
+    rejected_without_writing(work, capsys, lambda out: ["sweep", str(path), "--out", str(out), "--no-progress"],
+                             "sweep", names_for(path) + ["quick.yaml", "--out"])
 
 
 # ------------------------------------------------------------------------------ protocol
@@ -237,13 +239,9 @@ def test_protocol_file(base, capsys, doc: Doc):
     opts = ScorecardOptions(protocol_files=(path,), detector="oracle", tracker="sort", progress=False)
     assume(not valid_with(build_tasks, opts))
     COUNTS["protocol"] += 1
-    out = work / "out"
-    before = _tree(work)
-    rc, o, e = invoke(["scorecard", "--protocol", str(path), "--detector", "oracle", "--tracker", "sort",
-                       "--out", str(out), "--no-progress"], capsys)
-    assert_one_line_error(rc, o, e, "scorecard", names_for(path))
-    assert_nothing_written(work, before, out)
-    shutil.rmtree(work)
+    rejected_without_writing(work, capsys, lambda out: ["scorecard", "--protocol", str(path), "--detector", "oracle",
+                                                        "--tracker", "sort", "--out", str(out), "--no-progress"],
+                             "scorecard", names_for(path))
 
 
 # ------------------------------------------------------------------------------ camera

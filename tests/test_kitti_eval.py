@@ -19,6 +19,7 @@ from harness.kitti_eval.reader import KittiInputError, open_dataset, parse_calib
 from harness.scoring import kitti_ap as kap
 from monorarp.app import cli
 from monorarp.core.camera import CameraError, CameraModel
+from synthetic import write_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 FX, CX, CY = 700.0, 199.5, 74.5          # hand-written camera: 400 x 150 px
@@ -243,9 +244,7 @@ def test_cli_on_hand_written_object_dataset(tmp_path, capsys):
 def _scenario(tmp: Path) -> Path:
     data = yaml.safe_load((ROOT / "scenarios" / "highway_cruise.yaml").read_text())
     data["camera"] = {**(data.get("camera") or {}), "width": 640, "height": 360}
-    p = tmp / "highway_cruise.yaml"
-    p.write_text(yaml.safe_dump(data, sort_keys=False))
-    return p
+    return write_scenario(tmp / "highway_cruise.yaml", data)
 
 
 @pytest.fixture(scope="module")

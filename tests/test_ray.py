@@ -15,14 +15,9 @@ pytest.importorskip("ray", reason="Ray is not installed (optional extra: pip ins
 
 from harness.check.metrics import deterministic_metrics  # noqa: E402
 from monorarp.app.cli import main  # noqa: E402
+from synthetic import tiny_scenario, vehicle  # noqa: E402
 
-SCENARIO = {
-    "name": "tiny", "seed": 0, "duration_s": 1.0, "fps": 15, "road": {"lanes": 3},
-    "traffic": {"vehicles_count": 0}, "ego": {"lane": 1, "speed_mps": 25},
-    "vehicles": [{"name": "lead", "lane": 0, "distance_m": 14, "speed_mps": 20, "behaviour": "constant_speed"},
-                 {"name": "left", "lane": -1, "distance_m": 22, "speed_mps": 26, "behaviour": "constant_speed"}],
-    "camera": {"width": 320, "height": 180},
-}
+SCENARIO = tiny_scenario("tiny", 0, [vehicle("lead", 0, 14, 20), vehicle("left", -1, 22, 26)])
 SPEC = {"name": "ray_t", "scenarios": ["tiny.yaml"], "seeds": [1, 2], "frames": 5,
         "variants": [{"name": "pf", "detector": "oracle", "detector_kwargs": {"jitter_px": 1.0}, "tracker": "particle"}]}
 

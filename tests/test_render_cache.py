@@ -18,14 +18,9 @@ from harness.world.scenario import parse_scenario
 from harness.sweep.execution import RenderOnceQueue
 from harness.sweep.expand import load_and_expand
 from monorarp.app.cli import main
+from synthetic import tiny_scenario, vehicle
 
-SCENARIO = {
-    "name": "tiny", "seed": 0, "duration_s": 1.0, "fps": 15, "road": {"lanes": 3},
-    "traffic": {"vehicles_count": 0}, "ego": {"lane": 1, "speed_mps": 25},
-    "vehicles": [{"name": "lead", "lane": 0, "distance_m": 13, "speed_mps": 17, "behaviour": "constant_speed"},
-                 {"name": "left", "lane": -1, "distance_m": 22, "speed_mps": 26, "behaviour": "constant_speed"}],
-    "camera": {"width": 160, "height": 96},
-}
+SCENARIO = tiny_scenario("tiny", 0, [vehicle("lead", 0, 13, 17), vehicle("left", -1, 22, 26)], width=160, height=96)
 SPEC = {"name": "cache_t", "scenarios": ["tiny.yaml"], "seeds": [1, 2], "frames": 4,
         "variants": [{"name": "pf", "detector": "oracle", "tracker": "particle"},
                      {"name": "sort", "detector": "oracle", "detector_kwargs": {"jitter_px": 1.0}, "tracker": "sort"}]}

@@ -27,19 +27,11 @@ from monorarp.app.cli import main
 from monorarp.pipeline import registry
 from monorarp.state.estimator import StateEstimator
 from monorarp.app.video.writer import read_video
+from synthetic import tiny_scenario, vehicle
 
 N_FRAMES = 12
-SCENARIO = {
-    "name": "run_test", "seed": 3, "duration_s": 1.0, "fps": 15,
-    "road": {"lanes": 3}, "traffic": {"vehicles_count": 0},
-    "ego": {"lane": 1, "speed_mps": 25},
-    "vehicles": [
-        {"name": "lead", "lane": 0, "distance_m": 12, "speed_mps": 22, "behaviour": "constant_speed"},
-        {"name": "left", "lane": -1, "distance_m": 20, "speed_mps": 26, "behaviour": "constant_speed"},
-        {"name": "right", "lane": 1, "distance_m": 27, "speed_mps": 24, "behaviour": "constant_speed"},
-    ],
-    "camera": {"width": 320, "height": 180},
-}
+SCENARIO = tiny_scenario("run_test", 3, [vehicle("lead", 0, 12, 22), vehicle("left", -1, 20, 26),
+                                          vehicle("right", 1, 27, 24)])
 ORACLE = {"detector": {"name": "oracle"}, "tracker": {"name": "particle"},
           "state": {"name": "geometric", "kwargs": {"velocity": "difference"}}}
 REQUIRED = ["frames", "distance.rel_err_median", "distance.abs_err_median_m", "lateral.abs_err_median_m",

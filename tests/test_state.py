@@ -33,19 +33,24 @@ def project_cv2(cam: CameraModel, points_ego: np.ndarray) -> np.ndarray:
     return uv.reshape(-1, 2)
 
 
-def vehicle_box(cam: CameraModel, d_x: float, d_y: float, W=1.8, L=4.5, H=1.5, overhang=0.95, clearance=0.17):
-    """Tight image box of a box-shaped vehicle (rear face at d_y, centre d_x), via cv2.projectPoints.
-
-    Lowest points: rear bumper's lower edge (clearance above ground at the rear face) and the rear
-    tyres' contact line (overhang ahead of the rear face).
-    """
+def vehicle_points(cam: CameraModel, d_x, d_y, W, L, H, overhang, clearance):
+    """Ego-frame points of a box-shaped vehicle: body corners (clearance..H) and the tyre contact lines."""
     h = cam.height_m
     pts = []
     for x in (d_x - W / 2, d_x + W / 2):
         for y in (d_y, d_y + L):
             pts += [(x, y, -h + clearance), (x, y, -h + H)]
         pts += [(x, d_y + overhang, -h), (x, d_y + L - overhang, -h)]
-    uv = project_cv2(cam, np.array(pts))
+    return np.array(pts)
+
+
+def vehicle_box(cam: CameraModel, d_x: float, d_y: float, W=1.8, L=4.5, H=1.5, overhang=0.95, clearance=0.17):
+    """Tight image box of a box-shaped vehicle (rear face at d_y, centre d_x), via cv2.projectPoints.
+
+    Lowest points: rear bumper's lower edge (clearance above ground at the rear face) and the rear
+    tyres' contact line (overhang ahead of the rear face).
+    """
+    uv = project_cv2(cam, vehicle_points(cam, d_x, d_y, W, L, H, overhang, clearance))
     return (uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max())
 
 
@@ -213,13 +218,7 @@ def visible_box(cam: CameraModel, d_x: float, d_y: float, W=1.8, L=4.5, H=1.5, o
     its projection (``cv2.projectPoints``) is clipped to the image rectangle
     (-0.5..w-0.5, -0.5..h-0.5) with ``cv2.intersectConvexConvex``.
     """
-    h = cam.height_m
-    pts = []
-    for x in (d_x - W / 2, d_x + W / 2):
-        for y in (d_y, d_y + L):
-            pts += [(x, y, -h + clearance), (x, y, -h + H)]
-        pts += [(x, d_y + overhang, -h), (x, d_y + L - overhang, -h)]
-    uv = project_cv2(cam, np.array(pts)).astype(np.float32)
+    uv = project_cv2(cam, vehicle_points(cam, d_x, d_y, W, L, H, overhang, clearance)).astype(np.float32)
     hull = cv2.convexHull(uv)
     w, hh = cam.width - 0.5, cam.height - 0.5
     rect = np.array([[-0.5, -0.5], [w, -0.5], [w, hh], [-0.5, hh]], dtype=np.float32)

@@ -15,17 +15,8 @@ from monorarp.tracking.kalman_box import BoxKalman, boxes_to_z, x_to_boxes
 from monorarp.tracking.opencv import box_to_rect, inside_fraction, rect_to_box
 from monorarp.core.types import Detection
 
-from tracking_helpers import DT, box_at, iou_ref, run  # noqa: F401
-
-
-# ------------------------------------------------------------------------------------------- helpers
-def crossing_frames(n=80):
-    frames = []
-    for k in range(n):
-        a = box_at(100 + 6 * k, 200, 80, 60)
-        b = box_at(560 - 5 * k, 190, 50, 38)
-        frames.append(({1: a, 2: b}, [a, b]))
-    return frames
+from tracking_helpers import (DT, box_at, crossing_frames, ids_with_gap, iou_ref,  # noqa: F401
+                              noisy_vehicle_frames, run)
 
 
 # ------------------------------------------------------------------------------------------- Kalman
@@ -66,15 +57,7 @@ def test_crossing_vehicles_keep_ids(name):
 
 @pytest.mark.parametrize("name", ["sort", "bytetrack"])
 def test_five_noisy_vehicles_100_frames(name):
-    rng = np.random.default_rng(7)
-    starts = [(80, 210, 70, 55, 1.5), (220, 190, 40, 30, -0.5), (330, 185, 30, 23, 0.2),
-              (450, 200, 60, 45, -1.2), (560, 195, 45, 34, 0.0)]
-    frames = []
-    for k in range(100):
-        gt = {i: box_at(x + vx * k, y, w * (1 + 0.002 * k), h * (1 + 0.002 * k))
-              for i, (x, y, w, h, vx) in enumerate(starts)}
-        dets = [g + rng.normal(0, 1.0, 4) for g in gt.values() if rng.random() > 0.05]   # 5 % misses
-        frames.append((gt, dets))
+    frames = noisy_vehicle_frames(seed=7, miss_rate=0.05)                           # 5 % misses
     tracker = SortTracker(max_age=3) if name == "sort" else ByteTracker()
     summ, outs = run(tracker, frames)
     assert summ["num_switches"] == 0 and summ["idf1"] > 0.9 and summ["mota"] > 0.85
@@ -106,10 +89,7 @@ def test_sort_occlusion_gap_and_min_hits():
 def test_sort_track_dies_after_max_age_and_id_not_reused():
     b = box_at(300, 200, 50, 40)
     tr = SortTracker(max_age=2, min_hits=1)
-    seen = []
-    for k in range(12):
-        dets = [Detection(tuple(b))] if (k < 4 or k >= 7) else []
-        seen.append([t.id for t in tr.update(None, dets, k * DT)])
+    seen = ids_with_gap(tr, b, 12, (4, 7))
     assert seen[3] == [0] and seen[4:7] == [[]] * 3
     assert seen[7] == [] and seen[8] == [1] and seen[11] == [1]       # new id, output once matched again
     tr.reset()

@@ -12,7 +12,8 @@ from monorarp.tracking.association import assign, associate_iou
 from monorarp.tracking.particle import systematic_resample
 from monorarp.core.types import Detection
 
-from tracking_helpers import DT, box_at, iou_ref, run  # noqa: F401
+from tracking_helpers import (DT, box_at, crossing_frames, ids_with_gap, iou_ref,  # noqa: F401
+                              noisy_vehicle_frames, run)
 
 
 def test_global_assignment_where_greedy_swaps():
@@ -48,11 +49,7 @@ def test_systematic_resampling_counts():
 
 def test_two_vehicles_crossing_keep_ids():
     """A nearer (larger) vehicle passes in front of a farther one moving the other way."""
-    frames = []
-    for k in range(80):
-        a = box_at(100 + 6 * k, 200, 80, 60)
-        b = box_at(560 - 5 * k, 190, 50, 38)
-        frames.append(({1: a, 2: b}, [a, b]))
+    frames = crossing_frames(80)
     summ, outs = run(ParticleTracker(), frames)
     assert summ["num_switches"] == 0
     assert summ["mota"] > 0.97
@@ -74,15 +71,7 @@ def test_occlusion_gap_same_id_after():
 
 
 def test_ids_stable_over_100_noisy_frames():
-    rng = np.random.default_rng(7)
-    starts = [(80, 210, 70, 55, 1.5), (220, 190, 40, 30, -0.5), (330, 185, 30, 23, 0.2),
-              (450, 200, 60, 45, -1.2), (560, 195, 45, 34, 0.0)]
-    frames = []
-    for k in range(100):
-        gt = {i: box_at(x + vx * k, y, w * (1 + 0.002 * k), h * (1 + 0.002 * k))
-              for i, (x, y, w, h, vx) in enumerate(starts)}
-        dets = [g + rng.normal(0, 1.0, 4) for g in gt.values() if rng.random() > 0.05]   # 1 px jitter, 5 % misses
-        frames.append((gt, dets))
+    frames = noisy_vehicle_frames(seed=7, miss_rate=0.05, jitter=1.0)              # 1 px jitter, 5 % misses
     summ, outs = run(ParticleTracker(), frames)
     assert summ["num_switches"] == 0
     assert summ["idf1"] > 0.97 and summ["mota"] > 0.95
@@ -110,10 +99,7 @@ def test_false_positive_does_not_become_a_track():
 def test_deletion_after_max_coast_and_ids_never_reused():
     b = box_at(300, 200, 50, 40)
     tracker = ParticleTracker(max_coast=4, max_lost=0)
-    seen = []
-    for k in range(20):
-        dets = [Detection(tuple(b))] if (k < 5 or k >= 15) else []
-        seen.append([tr.id for tr in tracker.update(None, dets, k * DT)])
+    seen = ids_with_gap(tracker, b, 20, (5, 15))
     assert seen[4] == [0]
     assert seen[5:9] == [[0]] * 4 and seen[9] == []                        # coasts 4 frames, then deleted
     assert tracker.n_tracks == 0 or 0 not in seen[15]

@@ -35,3 +35,38 @@ def run(tracker, frames, images=None):
     summ = mm.metrics.create().compute(acc, metrics=["mota", "idf1", "num_switches", "num_false_positives",
                                                      "num_misses"])
     return summ.iloc[0], outs
+
+
+def crossing_frames(n=80):
+    """A nearer (larger) vehicle passing in front of a farther one moving the other way, detected exactly."""
+    frames = []
+    for k in range(n):
+        a = box_at(100 + 6 * k, 200, 80, 60)
+        b = box_at(560 - 5 * k, 190, 50, 38)
+        frames.append(({1: a, 2: b}, [a, b]))
+    return frames
+
+
+NOISY_STARTS = [(80, 210, 70, 55, 1.5), (220, 190, 40, 30, -0.5), (330, 185, 30, 23, 0.2),
+                (450, 200, 60, 45, -1.2), (560, 195, 45, 34, 0.0)]
+
+
+def noisy_vehicle_frames(seed=7, n=100, miss_rate=0.05, jitter=1.0):
+    """Five vehicles (slowly growing boxes), each detected with `jitter` px noise and missed at `miss_rate`."""
+    rng = np.random.default_rng(seed)
+    frames = []
+    for k in range(n):
+        gt = {i: box_at(x + vx * k, y, w * (1 + 0.002 * k), h * (1 + 0.002 * k))
+              for i, (x, y, w, h, vx) in enumerate(NOISY_STARTS)}
+        dets = [g + rng.normal(0, jitter, 4) for g in gt.values() if rng.random() > miss_rate]
+        frames.append((gt, dets))
+    return frames
+
+
+def ids_with_gap(tracker, box, n, gap):
+    """Track ids output per frame for one still `box` over `n` frames, undetected in frames gap[0] <= k < gap[1]."""
+    seen = []
+    for k in range(n):
+        dets = [] if gap[0] <= k < gap[1] else [Detection(tuple(box))]
+        seen.append([t.id for t in tracker.update(None, dets, k * DT)])
+    return seen
