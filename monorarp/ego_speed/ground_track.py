@@ -26,12 +26,14 @@ from monorarp.ego_speed.regression import pooled_slope
 from monorarp.ego_speed.stripes import StripeEdgeFinder, StripeEdges
 
 
-def check_markings(stripe_length_m: float, period_m: float) -> None:
-    """Raise :class:`EgoSpeedError` unless 0 < stripe length < period."""
+def check_markings(stripe_length_m: float, period_m: float, window_s: float) -> None:
+    """Raise :class:`EgoSpeedError` unless 0 < stripe length < period and the window (s) is positive."""
     if not (np.isfinite(stripe_length_m) and stripe_length_m > 0):
         raise EgoSpeedError(f"stripe_length_m must be a positive length in metres, got {stripe_length_m}")
     if not (np.isfinite(period_m) and period_m > stripe_length_m):
         raise EgoSpeedError(f"period_m must be longer than stripe_length_m ({stripe_length_m} m), got {period_m}")
+    if not window_s > 0:
+        raise EgoSpeedError(f"window_s must be positive, got {window_s}")
 
 
 def check_image(image: np.ndarray, camera: CameraModel) -> None:
@@ -43,6 +45,26 @@ def check_image(image: np.ndarray, camera: CameraModel) -> None:
         )
 
 
+class FrameClock:
+    """The time bookkeeping both lane-marking estimators share: a frame at an earlier time starts a new
+    sequence (``reset``), one at the same time adds nothing, and an estimate older than ``max_gap_s``
+    is none. Needs ``reset``, ``max_gap_s``, ``_last_t``, ``_speed`` and ``_speed_t`` on the estimator."""
+
+    def _is_new_frame(self, t: float) -> bool:
+        """Whether the frame at ``t`` (s) brings anything new; resets on a time going backwards."""
+        if self._last_t is not None and t < self._last_t:
+            self.reset()                                 # time went backwards: a new sequence
+        elif self._last_t is not None and t == self._last_t:
+            return False                                 # duplicate timestamp: nothing new
+        self._last_t = t
+        return True
+
+    def _current(self, t: float) -> float | None:
+        if self._speed is None or self._speed_t is None or t - self._speed_t > self.max_gap_s:
+            return None
+        return self._speed
+
+
 @dataclass
 class _Frame:
     t: float
@@ -50,7 +72,7 @@ class _Frame:
     ids: np.ndarray
 
 
-class GroundTrackEgoSpeed:
+class GroundTrackEgoSpeed(FrameClock):
     """Ego speed (m/s) from stripe ends tracked on the ground plane.
 
     ``camera``: the calibrated camera. ``stripe_length_m``/``period_m``: dash length
@@ -67,9 +89,7 @@ class GroundTrackEgoSpeed:
                  y_far: float = 30.0, max_speed_mps: float = 70.0, max_gap_s: float = 0.5,
                  min_observations: int = 6, max_lines: int = 4, line_range_m: float = 7.0,
                  min_contrast: float = 20.0) -> None:
-        check_markings(stripe_length_m, period_m)
-        if not window_s > 0:
-            raise EgoSpeedError(f"window_s must be positive, got {window_s}")
+        check_markings(stripe_length_m, period_m, window_s)
         self.camera = camera
         self.period_m = float(period_m)
         self.window_s = float(window_s)
@@ -103,11 +123,8 @@ class GroundTrackEgoSpeed:
         """Feed one frame taken at ``t`` (s, the frame's timestamp); return the ego speed (m/s) or None."""
         check_image(image_bgr, self.camera)
         t = float(t)
-        if self._last_t is not None and t < self._last_t:
-            self.reset()                                 # time went backwards: a new sequence
-        elif self._last_t is not None and t == self._last_t:
-            return self._current(t)                      # duplicate timestamp: nothing new
-        self._last_t = t
+        if not self._is_new_frame(t):
+            return self._current(t)
         lines = [ln for ln in self.line_finder.update(image_bgr) if abs(ln.a) <= self.line_range_m]
         self.lines = lines[: self.max_lines]
         edges = self.edge_finder.find(image_bgr, self.lines)
@@ -120,11 +137,6 @@ class GroundTrackEgoSpeed:
             self._obs.popleft()
         self._estimate(t)
         return self._current(t)
-
-    def _current(self, t: float) -> float | None:
-        if self._speed is None or self._speed_t is None or t - self._speed_t > self.max_gap_s:
-            return None
-        return self._speed
 
     # ------------------------------------------------------------ association
     def _associate(self, edges: StripeEdges, t: float) -> np.ndarray:

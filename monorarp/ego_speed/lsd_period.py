@@ -27,7 +27,7 @@ import numpy as np
 
 from monorarp.core.camera import CameraModel
 from monorarp.lanes.geometry import EgoSpeedError, row_of_distance, row_scale
-from monorarp.ego_speed.ground_track import check_image, check_markings
+from monorarp.ego_speed.ground_track import FrameClock, check_image, check_markings
 
 
 class _Side:
@@ -44,7 +44,7 @@ class _Side:
         self.appear.clear()
 
 
-class LsdPeriodEgoSpeed:
+class LsdPeriodEgoSpeed(FrameClock):
     """Ego speed (m/s) from the time between dash appearances at a fixed point (the paper's method).
 
     ``ref_distance_m``: distance ahead (m) of the fixed point on each reference line.
@@ -60,9 +60,7 @@ class LsdPeriodEgoSpeed:
                  roi_far_m: float = 40.0, min_contrast: float = 30.0, max_speed_mps: float = 70.0,
                  min_segment_px: float = 8.0, vp_tol_px: float | None = None, decay: float = 0.8,
                  max_gap_s: float = 2.0) -> None:
-        check_markings(stripe_length_m, period_m)
-        if not window_s > 0:
-            raise EgoSpeedError(f"window_s must be positive, got {window_s}")
+        check_markings(stripe_length_m, period_m, window_s)
         v_ref = float(row_of_distance(camera, ref_distance_m))
         if not (ref_distance_m > 0 and camera.horizon_row < v_ref <= camera.height - 1):
             raise EgoSpeedError(f"ref_distance_m={ref_distance_m} m is not visible on the ground in this camera's image")
@@ -100,11 +98,8 @@ class LsdPeriodEgoSpeed:
         """Feed one frame taken at ``t`` (s, its timestamp); return the ego speed (m/s) or None."""
         check_image(image_bgr, self.camera)
         t = float(t)
-        if self._last_t is not None and t < self._last_t:
-            self.reset()
-        elif self._last_t is not None and t == self._last_t:
+        if not self._is_new_frame(t):
             return self._current(t)
-        self._last_t = t
         gray = image_bgr if image_bgr.ndim == 2 else cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY)
         self._vote(gray)
         self._choose_reference_lines()
@@ -113,11 +108,6 @@ class LsdPeriodEgoSpeed:
                 self._sample(gray, side, t)
         self._estimate(t)
         return self._current(t)
-
-    def _current(self, t: float) -> float | None:
-        if self._speed is None or self._speed_t is None or t - self._speed_t > self.max_gap_s:
-            return None
-        return self._speed
 
     # ----------------------------------------------------- step 1: reference lines
     def _vote(self, gray: np.ndarray) -> None:
