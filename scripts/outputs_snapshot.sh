@@ -17,7 +17,7 @@ $M run scenarios/lead_braking.yaml --frames 60 --detector oracle --oracle-jitter
     --gps-speed --no-video --out "$OUT/run_mc" > "$OUT/run_mc.txt"
 $M run scenarios/conditions/highway_vibration.yaml --frames 40 --horizon online --velocity difference --tracker bytetrack \
     --ego-speed lsd_period --refine-bottom off --warning-threshold 2.5 --out "$OUT/run_online" > "$OUT/run_online.txt"
-$M video "$OUT/run_online/frames.mp4" --camera "$OUT/run_online/camera.json" --tracker kcf --risk monte_carlo --speed 25 \
+$M video "$OUT/run_online/frames.mp4" --camera "$OUT/run_online/camera.json" --detector centernet --tracker kcf --risk monte_carlo --speed 25 \
     --horizon online --no-video --out "$OUT/video" > "$OUT/video.txt" 2>&1
 $M video "$OUT/run_online/frames.mp4" --camera "$OUT/run_online/camera.json" --detector monorarp/models/centernet_vehicle.onnx \
     --ego-speed none --no-video --out "$OUT/video_onnx" > "$OUT/video_onnx.txt" 2>&1

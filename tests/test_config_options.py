@@ -11,10 +11,11 @@ import pytest
 from monorarp.pipeline import registry
 from monorarp.app.cli import build_parser, main
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
-from monorarp.app.options import (CLI_EGO_SPEED, add_pipeline_options,
+from monorarp.app.options import (CLI_EGO_SPEED, REAL_FRAMES, add_pipeline_options,
                                      default_pipeline_config, pipeline_config)
 from monorarp.core.errors import UserError
-from monorarp.pipeline.config import ComponentConfig, PipelineConfig
+from monorarp.pipeline.config import REAL_WORLD_DETECTOR, ComponentConfig, PipelineConfig
+from monorarp.app.video.run import VideoRunOptions
 from monorarp.pipeline.runner import Pipeline
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,7 +58,7 @@ def test_video_options_round_trip():
     cfg = pipeline_config(parse("video", "in.mp4", "--camera", "c.yaml", "--tracker", "kcf", "--risk",
                                 "monte_carlo", "--horizon", "online", "--ego-speed", "None"))
     # as the video command built it before, plus the state estimator's velocity written out (its default)
-    assert cfg == PipelineConfig(detector=C("centernet"), tracker=C("kcf"), state=C("geometric", velocity="kalman"),
+    assert cfg == PipelineConfig(detector=C("yolox"), tracker=C("kcf"), state=C("geometric", velocity="kalman"),
                                  risk=C("monte_carlo"), ego_speed=None, horizon=C("online"))
 
 
@@ -69,13 +70,17 @@ def test_defaults_identical_across_commands():
     bench = harness_config(parse("bench", "trackers"))
     card = harness_config(parse("scorecard", "--out", "x"))
     kitti = pipeline_config(parse("eval", "kitti", "d", "--out", "x"))
-    assert run == video == default_pipeline_config()
+    assert run == default_pipeline_config()
+    assert video == default_pipeline_config(REAL_FRAMES) == VideoRunOptions().pipeline
+    assert video == run.model_copy(update={"detector": C(REAL_WORLD_DETECTOR)})   # only the detector differs
     assert run.ego_speed == C(CLI_EGO_SPEED) and PipelineConfig().ego_speed is None
     for cfg in (run, video, bench, card, kitti):
-        assert cfg.detector.name == PipelineConfig().detector.name
+        assert cfg.detector.name == (REAL_WORLD_DETECTOR if cfg is video else PipelineConfig().detector.name)
         assert cfg.tracker.name == PipelineConfig().tracker.name
         assert cfg.risk == PipelineConfig().risk and cfg.warning == PipelineConfig().warning
-    assert parse("eval", "kitti", "d", "--out", "x").detector == PipelineConfig().detector.name
+    # real frames: yolox; rendered ones: centernet
+    assert REAL_WORLD_DETECTOR == "yolox" and PipelineConfig().detector.name == "centernet"
+    assert parse("eval", "kitti", "d", "--out", "x").detector is None    # by the dataset: test_yolox.py
     assert parse("run", "s.yaml").warning_threshold == TTC_CUE_THRESHOLD_S
 
 
@@ -160,7 +165,8 @@ def test_variant_config_and_run_mapping(tmp_path):
 
 @pytest.mark.parametrize("argv", [
     ["run", "missing.yaml", "--weak-detections", "0.2", "--tracker", "sort"],
-    ["video", "absent.mp4", "--camera", "c.yaml", "--weak-detections", "0.2", "--tracker", "bytetrack"],
+    ["video", "absent.mp4", "--camera", "c.yaml", "--detector", "centernet", "--weak-detections", "0.2",
+     "--tracker", "bytetrack"],
 ])
 def test_weak_detections_need_a_tracker_that_takes_them(argv, capsys):
     """Weak boxes go only to a tracker declaring ``uses_weak_detections``: for another one the option is refused."""

@@ -225,3 +225,37 @@ def test_the_layout_modules_do_not_draw():
         imported = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names} \
             | {(n.module or "").split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
         assert "cv2" not in imported, name
+
+
+def test_legend_only_when_asked_and_labels_keep_clear_of_it():
+    from monorarp.app.display.content import LEGEND
+
+    img = np.full((360, 640, 3), 90, np.uint8)
+    res = _result({1: 1.5, 2: None}, 1 / 1.5)
+    assert layout_frame(img.shape, res).legend is None
+    lay = layout_frame(img.shape, res, legend=True)
+    x1, y1, x2, y2 = lay.legend
+    assert x1 < 10 and y2 > 350 and x2 < 320 and y2 - y1 < 120      # bottom left, under half the width
+    assert lay.legend in lay.obstacles and len(LEGEND) == 4
+    plain, with_legend = draw_frame(img, res), draw_frame(img, res, legend=True)
+    inside = (slice(y1, y2), slice(x1, x2))
+    assert np.array_equal(plain[inside], img[inside]) and not np.array_equal(with_legend[inside], img[inside])
+    # the legend's samples: a red (warned) box sample and a white text somewhere inside
+    assert (with_legend[inside] == RED).all(axis=-1).any() and (with_legend[inside] == 255).all(axis=-1).any()
+
+
+def test_missed_truth_is_dashed_and_labelled_matched_truth_is_not():
+    from monorarp.app.display.content import missed_truth
+
+    img = np.full((360, 640, 3), 90, np.uint8)
+    res = _result({1: None, 2: None}, 0.0)
+    matched = (101.0, 201.0, 180.0, 260.0)                 # on track 1
+    missed = (250.0, 150.0, 330.0, 230.0)                  # no track there
+    assert missed_truth([matched, missed], res.tracks) == [1] and missed_truth([missed], []) == [0]
+    out = draw_frame(img, res, truth_boxes=[matched, missed])
+    top = out[150, 250:330]
+    grey = (top == (170, 170, 170)).all(axis=-1)
+    assert 0.3 < grey.mean() < 0.8                          # dashes on the missed box's top edge
+    above = out[130:150, 250:300]
+    assert (above.min(axis=-1) > 120).any()                 # its "missed" text (grey, anti-aliased) above it
+    assert (above == 0).all(axis=-1).mean() > 0.2           # on a black background

@@ -286,3 +286,68 @@ def test_cli_bad_options_one_line_nothing_written(tmp_path, capsys, argv, needle
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and needle in err[0], err
     assert not out.exists()
+
+
+def test_false_alarm_rate_interval_is_the_exact_poisson_one():
+    """Garwood's interval against its closed forms: k = 0 upper -ln(0.025)/T; k = 1 lower -ln(0.975)/T
+    (P(N >= 1) = 0.025) and upper solving P(N <= 1) = 0.025 ((1 + m) e^-m = 0.025, m = 5.5716)."""
+    import math
+
+    from harness.scorecard.score import exposure_needed, poisson_interval, rate_verdict
+
+    lo, hi = poisson_interval(0, 0.5)
+    assert lo == 0.0 and hi == pytest.approx(-math.log(0.025) / 0.5, rel=1e-9) and hi == pytest.approx(7.378, abs=1e-3)
+    lo, hi = poisson_interval(1, 2.0)
+    assert lo == pytest.approx(-math.log(0.975) / 2.0, rel=1e-9)
+    m = hi * 2.0
+    assert (1 + m) * math.exp(-m) == pytest.approx(0.025, rel=1e-9)
+    assert poisson_interval(3, 0.0) == (0.0, None)
+    assert exposure_needed(1.0) == pytest.approx(3.6889, abs=1e-4)
+    # 36 s cannot show <= 1 per hour even with no false alarm; 4 h with none can, with 3 it cannot
+    assert rate_verdict(0, 0.01) == "exposure too short to show ≤ 1 per hour"
+    assert rate_verdict(0, 4.0) == "PASS" and rate_verdict(3, 4.0) == "FAIL"
+    assert rate_verdict(0, 3.68) != "PASS" and rate_verdict(0, 3.69) == "PASS"
+
+
+def test_console_scorecard_has_no_python_reprs_and_gives_units_and_margins():
+    from harness.scorecard.report import console_table, param_text
+    from harness.scorecard.run import rate_fields
+
+    t = {"suite": "ci", "test": "LVD", "params": {"offset": 0.5, "gap_m": 30.0, "decel_mps2": 2.94},
+         "ego_speed_mps": 20.1, "target_speed_mps": 20.1, "required_ttc_s": 2.4, "trials": 2, "trials_passed": 1,
+         "min_trials_passed": 1, "ttc_at_first_warning_s": [2.95, None], "passed": True}
+    fa = {"episodes": 0, "hours": 0.01, "km": 0.6, "per_hour": 0.0, "runs": 2, "braking": 0, "list": [],
+          **rate_fields(0, 0.01, 0.6)}
+    card = {"tests": [t], "false_alarms": fa, "risk": None, "failed_runs": [],
+            "summary": {"tests_passed": {"ci": "5/5"}, "ncap_above_30kmh_ttc_ge_2s": 0.9,
+                        "ncap_above_30kmh_runs": 10, "ncap_above_30kmh_ttc_ge_2s_ci95": [0.555, 0.997]}}
+    text = console_table(card)
+    assert "{" not in text and "}" not in text and "[" not in text
+    assert "offset +50 %, gap 30 m, decel 2.94 m/s²" in text and "margin s" in text and "+0.55 –" in text
+    assert "test points passed: ci 5/5" in text
+    assert "95 % interval 0 – 369" in text and "exposure too short to show ≤ 1 per hour" in text
+    assert param_text("offset", 0.0) == "offset 0 %" and param_text("speed_mps", 3) == "speed 3 m/s"
+    assert fa["verdict"].startswith("exposure") and fa["per_hour_ci95"][1] == pytest.approx(368.9, abs=0.1)
+
+
+def test_scorecard_progress_bar_is_named_after_the_command(monkeypatch):
+    import harness.scorecard.run as run_mod
+
+    seen = {}
+    monkeypatch.setattr(run_mod, "execute", lambda *a, **k: seen.update(k) or [])
+    monkeypatch.setattr(run_mod, "prepare_out_dir", lambda out, resume: out)
+    monkeypatch.setattr(run_mod, "build_tasks", lambda opts: ([], []))
+    class Stop(Exception):
+        pass
+
+    def stop(*a):
+        raise Stop
+
+    monkeypatch.setattr(run_mod, "scorecard", stop)
+
+    class Ex:
+        pass
+
+    with pytest.raises(Stop):
+        run_mod.run_scorecard("/nonexistent-out", run_mod.ScorecardOptions(), make=lambda *a, **k: Ex())
+    assert seen == {"desc": "scorecard"}

@@ -292,3 +292,59 @@ def test_report_copes_with_runs_without_objects(tmp_path):
              "detector": "oracle", "status": "ok", "error": None, "metrics": {"frames": 3, "runtime_ms.total": 1.0}}]
     html = render_report(rows, tmp_path, name="n", spec_path="spec.yaml", grid_keys=[])
     assert "No scored object-frames" in html and "No case has a true TTC" in html
+
+
+def test_sweep_with_baseline_puts_the_verdict_at_the_top_of_the_report(tmp_path, monkeypatch, capsys):
+    """--baseline: OK when the runs match it; a shifted value is REGRESSED, named in the report's top box
+    and highlighted in the runs table, and the sweep exits 1; a bad baseline exits 2 before any run."""
+    monkeypatch.setattr(harness.run.runner, "run_scenario", FakeRun())
+    spec = write_case(tmp_path, spec_dict())
+    out = tmp_path / "out"
+    assert run_cli(spec, "--out", out) == 0
+    base = tmp_path / "base.json"
+    assert main(["check", str(out), "--baseline", str(base), "--update"]) == 0
+    assert run_cli(spec, "--out", tmp_path / "ok", "--baseline", base) == 0
+    page = (tmp_path / "ok" / "report.html").read_text()
+    assert "Regression check: OK" in page and page.index("Regression check") < page.index("<h2>Runs</h2>")
+    data = json.loads(base.read_text())
+    rid = sorted(data["runs"])[0]
+    data["runs"][rid]["distance.rel_err_median"]["value"] = -1.0      # now is worse by far more than the slack
+    base.write_text(json.dumps(data))
+    capsys.readouterr()
+    assert run_cli(spec, "--out", tmp_path / "bad", "--baseline", base) == 1
+    assert f"{rid}  distance.rel_err_median: REGRESSED" in capsys.readouterr().out
+    page = (tmp_path / "bad" / "report.html").read_text()
+    top = page[:page.index("<h2>Runs</h2>")]
+    assert "REGRESSION: 1 of" in top and rid in top and "distance error, median %" in top
+    assert 'class="hl" title="REGRESSED against the baseline' in page
+    base.write_text("{")
+    assert run_cli(spec, "--out", tmp_path / "never", "--baseline", base) == 2 and not (tmp_path / "never").exists()
+
+
+def test_report_names_metrics_with_units_highlights_zero_recall_and_dashes_stages_not_run(tmp_path):
+    from harness.sweep.labels import display_value, metric_label
+    from harness.sweep.report import render_report
+
+    assert metric_label("distance.by_span.5-40.rel_err_median") == "distance error 5–40 m, median %"
+    assert metric_label("rel_velocity.abs_err_median_mps") == "closing-speed error, median m/s"
+    assert display_value("distance.rel_err_median", 0.05) == pytest.approx(5.0)
+    assert display_value("tracking.mota", 0.5) == 0.5
+    rows = []
+    for v, recall in (("particle", 0.9), ("kcf", 0.0)):
+        (tmp_path / v).mkdir()
+        (tmp_path / v / "run.json").write_text(json.dumps({"params": {"pipeline": {
+            "detector": {"name": "oracle"}, "tracker": {"name": v}, "state": {}, "risk": {}, "ego_speed": None,
+            "warning": {}}}}))
+        rows.append({"id": v, "scenario": "s", "seed": 0, "grid": {}, "variant": v, "tracker": v, "detector": "oracle",
+                     "status": "ok", "error": None,
+                     "metrics": {"distance.rel_err_median": 0.0123, "ttc.warning.recall": recall,
+                                 "runtime_ms.detector": 2.0, "runtime_ms.ego_speed": 0.0, "runtime_ms.total": 5.0}})
+    page = render_report(rows, tmp_path, name="n", spec_path="spec.yaml", grid_keys=[],
+                         headline=["distance.rel_err_median", "ttc.warning.recall"])
+    runs = page[page.index("<h2>Runs</h2>"):page.index("<h2>Distance")]
+    assert "distance error, median %" in runs and "distance.rel_err_median" not in runs and ">1.23<" in runs
+    assert runs.count('class="hl"') == 1 and 'title="0: no real threat warned in time">0<' in runs
+    assert "Regression check" not in page                      # no baseline given: no verdict
+    runtime = page[page.index("<h2>Runtime breakdown"):]
+    cells = runtime[runtime.index("<tbody>"):].split("</tr>")[0]
+    assert "<td>2</td><td>–</td>" in cells and "a stage the sweep's pipeline does not run (ego_speed)" in runtime

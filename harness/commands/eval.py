@@ -1,5 +1,5 @@
 """``monorarp eval kitti DIR [--detector NAME|PATH.onnx|labels] [--camera-height M] [--horizon-row PX]
-[--tracker NAME] [--fps HZ] [--frames N] --out OUT``.
+[--tracker NAME] [--fps HZ] [--frames N] [--lenient] --out OUT``.
 
 Scores the pipeline on a KITTI object or tracking dataset (:mod:`harness.kitti_eval`): ``OUT/metrics.json``
 (the run keys plus ``kitti_ap`` and ``dataset``) and ``OUT/per_object.csv``, written all or nothing.
@@ -16,7 +16,7 @@ from pathlib import Path
 from monorarp.app.common_options import add_frames_option, add_out_option, frames_within
 from monorarp.app.options import add_pipeline_options, default_name, pipeline_config
 from monorarp.core.errors import UserError
-from monorarp.pipeline.config import PipelineConfig
+from monorarp.pipeline.config import REAL_WORLD_DETECTOR, PipelineConfig
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,9 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "rig's calibration needs --camera-height (KITTI: 1.65) and is taken as level unless "
                     "--horizon-row is given.")
     k.add_argument("root", type=Path, metavar="DIR", help="dataset directory (or its parent holding training/)")
-    k.add_argument("--detector", default=PipelineConfig().detector.name, metavar="NAME|PATH.onnx|labels",
+    k.add_argument("--detector", default=None, metavar="NAME|PATH.onnx|labels",
                    help="registered detector, an ONNX model, or 'labels' (the label boxes of Car/Van/Truck as "
-                        f"detections: an oracle); default {PipelineConfig().detector.name}")
+                        f"detections: an oracle); default {REAL_WORLD_DETECTOR} on real frames, "
+                        f"{PipelineConfig().detector.name} on a `monorarp export` of renders (with export.json)")
     add_pipeline_options(k, stages=("tracker",))   # tracking sequences only; object datasets use none
     k.set_defaults(tracker=_Default(default_name("tracker")))   # told from a given --tracker (refused on objects)
     k.add_argument("--camera-height", type=float, default=None, metavar="M",
@@ -45,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     k.add_argument("--fps", type=float, default=None, metavar="HZ",
                    help="frame rate of tracking sequences (default: export.json's, else KITTI's 10 Hz)")
     add_frames_option(k, help="evaluate only the first N frames (1 .. the dataset's frames, all sequences together)")
+    k.add_argument("--lenient", action="store_true",
+                   help="for a dataset known to be dirty: skip label lines outside KITTI's definitions instead of "
+                        "refusing the dataset (counted and listed in metrics.json's dataset.skipped_lines)")
     add_out_option(k, required=True, metavar="OUT",
                    help="output directory (created; a previous evaluation there is replaced)")
     k.set_defaults(func=run_kitti)
@@ -64,6 +68,15 @@ def _positive(name: str, v: float | None) -> None:
         raise UserError(f"{name}: must be a positive number, got {v}")
 
 
+def default_detector(root: Path) -> str:
+    """``--detector``'s default for the dataset at ``root``: the simulation default (``centernet``, trained on
+    renders) for a ``monorarp export`` of rendered frames (an ``export.json`` beside it), else the real-world
+    detector (:data:`~monorarp.pipeline.config.REAL_WORLD_DETECTOR`)."""
+    from harness.kitti_eval.cameras import read_manifest
+
+    return PipelineConfig().detector.name if read_manifest(root) else REAL_WORLD_DETECTOR
+
+
 def run_kitti(args: argparse.Namespace) -> int:
     from harness.kitti_eval.evaluate import LABELS_DETECTOR, KittiEvalOptions, dataset_summary, evaluate_kitti
     from harness.kitti_eval.reader import open_dataset
@@ -74,7 +87,7 @@ def run_kitti(args: argparse.Namespace) -> int:
     _positive("--fps", args.fps)
     if args.horizon_row is not None and not math.isfinite(args.horizon_row):
         raise UserError(f"--horizon-row: must be finite, got {args.horizon_row}")
-    detector = args.detector
+    detector = args.detector or REAL_WORLD_DETECTOR     # None: decided by the dataset, below
     if is_model_path(detector):
         detector = str(Path(detector).expanduser())
         if not Path(detector).is_file():
@@ -85,7 +98,9 @@ def run_kitti(args: argparse.Namespace) -> int:
         get_factory("detector", detector)            # unknown names fail before anything is read
     tracker_given = not isinstance(args.tracker, _Default)
     tracker = pipeline_config(args).tracker.name
-    ds = open_dataset(args.root)
+    ds = open_dataset(args.root, lenient=args.lenient)
+    if args.detector is None:
+        detector = default_detector(ds.root)
     if tracker_given and ds.kind == "object":
         raise UserError(f"--tracker: {ds.root} is a KITTI object dataset, whose images are scored one by one "
                         "without a tracker; --tracker applies to tracking datasets (image_02/, label_02/)")
@@ -95,5 +110,7 @@ def run_kitti(args: argparse.Namespace) -> int:
                             horizon_row=args.horizon_row, fps=args.fps, frames=args.frames)
     metrics = evaluate_kitti(ds, opts, args.out)
     print(dataset_summary(metrics))
+    if ds.skipped:
+        print(f"--lenient: skipped {len(ds.skipped)} bad label lines (listed in metrics.json), first: {ds.skipped[0]}")
     print(f"-> {args.out}/metrics.json, per_object.csv")
     return 0

@@ -97,8 +97,9 @@ class _Pipelines:
     """One pipeline per camera (the detector's fovea and the state estimator read it); its detector stage is
     the shared :class:`QueuedDetector`, the real detector of each camera runs on the decoding threads."""
 
-    def __init__(self, opts: KittiEvalOptions, kind: str) -> None:
+    def __init__(self, opts: KittiEvalOptions, kind: str, rendered: bool = False) -> None:
         self.opts, self.kind = opts, kind
+        self.state_kwargs = opts.state_settings(rendered)
         self.labels = opts.detector == LABELS_DETECTOR
         self.queue = QueuedDetector()
         self.cache: OrderedDict[CameraModel, Pipeline] = OrderedDict()
@@ -108,7 +109,8 @@ class _Pipelines:
     def config(self) -> PipelineConfig:
         det = "oracle" if self.labels else self.opts.detector                 # "oracle": a placeholder, replaced
         tracker = "sort" if self.kind == "object" else self.opts.tracker      # replaced for object datasets
-        return PipelineConfig(detector=ComponentConfig(name=det), tracker=ComponentConfig(name=tracker))
+        return PipelineConfig(detector=ComponentConfig(name=det), tracker=ComponentConfig(name=tracker),
+                              state=ComponentConfig(name="geometric", kwargs=self.state_kwargs))
 
     def get(self, camera: CameraModel) -> Pipeline:
         with self.lock:
@@ -129,7 +131,8 @@ class _Pipelines:
     def describe(self) -> dict:
         return {"detector": self.opts.detector,
                 "tracker": "none (each image alone)" if self.kind == "object" else self.opts.tracker,
-                "state": "geometric", "risk": "ttc", "warning": "fcw"}
+                "state": "geometric" + (f" {self.state_kwargs}" if self.state_kwargs else ""), "risk": "ttc",
+                "warning": "fcw"}
 
 
 def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[KittiFrameTruth], list[FrameResult], dict]:
@@ -137,7 +140,7 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[KittiFrameTru
     manifest = read_manifest(ds.root)
     fps = opts.fps or manifest.get("fps") or DEFAULT_FPS
     cameras = Cameras(opts, manifest)
-    pipes = _Pipelines(opts, ds.kind)
+    pipes = _Pipelines(opts, ds.kind, rendered=bool(manifest))
     truths: list[KittiFrameTruth] = []
     results: list[FrameResult] = []
     infos: list[dict] = []

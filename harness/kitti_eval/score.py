@@ -55,6 +55,7 @@ def score(ds: Dataset, truths: list[KittiFrameTruth], results: list[FrameResult]
                          "Car/Van/Truck, box height > 25 px, occluded <= 2, truncation level 0, d_long <= 80 m"),
         "distance_truth": "nearest ego-y of the label's footprint (location, w, l, rotation_y; heading "
                           "(cos ry, -sin ry / cos pitch)); lateral: ego-x of the bottom-face centre",
+        "skipped_lines": {"count": len(ds.skipped), "lines": list(ds.skipped)},
         "camera": facts["camera"], "camera_model": facts.get("camera_model"),
         "frames_per_s_total": len(truths) / wall_s if wall_s > 0 else None,
         "frames_per_s_pipeline": metrics["fps"]}

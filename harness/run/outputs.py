@@ -84,7 +84,7 @@ class RunOutputs:
 
         speed = res.ego_speed if res.ego_speed is not None else truth.ego.speed  # estimate, else true
         self._annotated.write(draw_frame(image, res, warning_s=warning_s, ego_speed=speed,
-                                         truth_boxes=[o.box for o in truth.objects]))
+                                         truth_boxes=[o.box for o in truth.objects], legend=True))
 
     def write_scores(self, metrics: dict, records: list, frame_rows: list[dict]) -> None:
         """Write ``metrics.json``, ``per_object.csv`` and ``per_frame.csv``."""

@@ -144,7 +144,8 @@ def run_scorecard(out: str | Path, opts: ScorecardOptions, make: Callable[..., E
     getattr(ex, "start", lambda: None)()
     try:
         runs_dir = prepare_out_dir(out, opts.resume)
-        execute(ex, [t for t in tasks if not (opts.resume and finished(t, runs_dir))], runs_dir, opts.progress)
+        execute(ex, [t for t in tasks if not (opts.resume and finished(t, runs_dir))], runs_dir, opts.progress,
+                desc="scorecard")
     finally:
         getattr(ex, "close", lambda: None)()
     from harness.sweep.summary import collect_rows, write_summary
@@ -249,12 +250,22 @@ def scorecard(trials: Sequence[Trial], tasks: Sequence[RunTask], runs_dir: Path,
                          "runs": sum(t.kind == "nominal" for t in trials),
                          "warmup_s": sorted({float(t.scenario.get("traffic", {}).get("warmup_s", 0.0))
                                              for t in trials if t.kind == "nominal"}),
-                         "braking": sum(e["braking"] for e in fa_episodes), "list": fa_episodes},
+                         "braking": sum(e["braking"] for e in fa_episodes), "list": fa_episodes,
+                         **rate_fields(len(fa_episodes), hours, exposure_km)},
         "risk": score.pooled_risk(risk_runs) if risk_runs else None,
         "failed_runs": failed,
     }
     from monorarp.app.io import to_jsonable
     return to_jsonable(card), risk_runs
+
+
+def rate_fields(n: int, hours: float, km: float) -> dict:
+    """The false-alarm rate's 95 % Poisson intervals, its target, verdict and the exposure the target needs."""
+    lo, hi = score.poisson_interval(n, hours)
+    lo_km, hi_km = score.poisson_interval(n, km / 100.0)
+    return {"per_hour_ci95": [lo, hi], "per_100km_ci95": [lo_km, hi_km],
+            "target_per_hour": score.FALSE_ALARM_TARGET_PER_H, "verdict": score.rate_verdict(n, hours),
+            "hours_needed": score.exposure_needed(score.FALSE_ALARM_TARGET_PER_H)}
 
 
 def summary(tests: Sequence[dict]) -> dict:
@@ -270,6 +281,7 @@ def summary(tests: Sequence[dict]) -> dict:
         ok = sum(v is not None and v >= 2.0 for v in ncap)
         out["ncap_above_30kmh_ttc_ge_2s"] = ok / len(ncap)
         out["ncap_above_30kmh_runs"] = len(ncap)
+        out["ncap_above_30kmh_ttc_ge_2s_ci95"] = list(score.proportion_interval(ok, len(ncap)))
     by_suite: dict = {}
     for t in tests:
         s = by_suite.setdefault(t["suite"], [0, 0])

@@ -9,7 +9,11 @@
   deceleration, offset): passed when at least ``min_trials_passed`` of its trials pass
   (NHTSA: 5 of 7).
 * **False alarms** over the ``nominal`` runs: episodes whose span holds no truth
-  conflict (:mod:`harness.scoring.warnings`), per hour and per km of simulated driving.
+  conflict (:mod:`harness.scoring.warnings`), per hour and per km of simulated driving, each with its
+  exact (Garwood) Poisson 95 % interval; against the target of at most ``FALSE_ALARM_TARGET_PER_H``
+  per hour the verdict is PASS when the interval's upper end is at or below it, FAIL when it is
+  above it, and "exposure too short" when even no false alarm would leave the upper end above it
+  (under ``-ln(0.025) / target`` = 3.69 h for 1 per hour): :func:`rate_verdict`.
 * **Risk** pooled over every run of the risk family: per frame, positive when a
   collision or a true TTC under 1 s (``risk_event``) occurs within the next ``h`` s,
   frames whose window runs past the run's end excluded unless already positive;
@@ -30,6 +34,52 @@ import numpy as np
 from harness.scoring import algo
 
 HORIZONS_S = (1.0, 2.0, 3.0)
+FALSE_ALARM_TARGET_PER_H = 1.0     # false alarms per hour of nominal driving, at most
+CONFIDENCE = 0.95
+
+
+def poisson_interval(k: int, exposure: float, confidence: float = CONFIDENCE) -> tuple[float, float | None]:
+    """Exact (Garwood) two-sided interval of a Poisson rate: ``k`` events in ``exposure`` (h, km, ...).
+
+    Lower ``chi2(a/2; 2k) / 2T`` (0 for k = 0), upper ``chi2(1 - a/2; 2k + 2) / 2T``; for k = 0 the upper
+    end is ``-ln(a/2) / T`` (3.689 / T at 95 %). Upper None when there is no exposure.
+    """
+    from scipy.stats import chi2
+
+    if k < 0:
+        raise ValueError(f"k must be >= 0, got {k}")
+    if not exposure > 0:
+        return 0.0, None
+    a = 1.0 - confidence
+    lo = float(chi2.ppf(a / 2, 2 * k)) / (2 * exposure) if k > 0 else 0.0
+    return lo, float(chi2.ppf(1 - a / 2, 2 * k + 2)) / (2 * exposure)
+
+
+def rate_verdict(k: int, hours: float, target: float = FALSE_ALARM_TARGET_PER_H,
+                 confidence: float = CONFIDENCE) -> str:
+    """``PASS``, ``FAIL`` or ``exposure too short to show ≤ 1 per hour`` for ``k`` events in ``hours``
+    of driving against a rate of at most ``target`` per hour (module docstring)."""
+    best = poisson_interval(0, hours, confidence)[1]
+    if best is None or best > target:
+        return f"exposure too short to show ≤ {target:g} per hour"
+    return "PASS" if poisson_interval(k, hours, confidence)[1] <= target else "FAIL"
+
+
+def exposure_needed(target: float, confidence: float = CONFIDENCE) -> float:
+    """The exposure (h) at which no event at all shows a rate of at most ``target`` (per h)."""
+    return poisson_interval(0, 1.0, confidence)[1] / target
+
+
+def proportion_interval(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float] | None:
+    """Exact (Clopper-Pearson) two-sided interval of a proportion ``k / n``; None when ``n`` is 0."""
+    from scipy.stats import beta
+
+    if n <= 0:
+        return None
+    a = 1.0 - confidence
+    lo = float(beta.ppf(a / 2, k, n - k + 1)) if k > 0 else 0.0
+    hi = float(beta.ppf(1 - a / 2, k + 1, n - k)) if k < n else 1.0
+    return lo, hi
 
 
 def trial_passed(kind: str, warning: Mapping, required_ttc_s: float | None) -> bool:

@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from harness.sweep.expand import format_value
+from harness.sweep.labels import display_value, metric_label
 
 MAX_METRICS = 8
 
@@ -31,7 +32,8 @@ def _log_scale(values: Sequence[float]) -> bool:
 
 
 def axis_table(rows: Sequence[Mapping], key: str, metric: str) -> dict[str, list[tuple[Any, float | None]]]:
-    """{variant: [(axis value, mean of ``metric`` over ok runs with that value)]} in first-seen value order."""
+    """{variant: [(axis value, mean of ``metric`` over ok runs with that value, in the unit of its label:
+    relative errors in %)]} in first-seen value order."""
     values: list[Any] = []
     for r in rows:
         v = r["grid"].get(key)
@@ -44,7 +46,7 @@ def axis_table(rows: Sequence[Mapping], key: str, metric: str) -> dict[str, list
             xs = [_num(r["metrics"].get(metric)) for r in rows
                   if r["variant"] == variant and r["status"] == "ok" and r["grid"].get(key) == v]
             xs = [x for x in xs if x is not None]
-            pts.append((v, sum(xs) / len(xs) if xs else None))
+            pts.append((v, display_value(metric, sum(xs) / len(xs)) if xs else None))
         out[variant] = pts
     return out
 
@@ -87,7 +89,7 @@ def axis_section(rows: Sequence[Mapping], grid_keys: Sequence[str], headline: Se
                         transform=ax.transAxes, fontsize=8, color="0.4")
                 ax.set_xticks([])
                 ax.set_yticks([])
-            ax.set_title(metric, fontsize=9)
+            ax.set_title(metric_label(metric), fontsize=9)
             ax.set_xlabel(key, fontsize=8)
             ax.grid(alpha=0.3)
         for ax in axs.ravel()[len(metrics):]:

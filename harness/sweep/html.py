@@ -15,7 +15,9 @@ body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;
 h1{font-size:22px}h2{font-size:18px;margin-top:32px;border-bottom:1px solid #ddd;padding-bottom:4px}
 table{border-collapse:collapse;font-size:12px;margin:8px 0}
 th,td{border:1px solid #d0d0d0;padding:3px 6px;text-align:right;white-space:nowrap}
-th{background:#f3f3f3}td.l,th.l{text-align:left}
+th{background:#f3f3f3;white-space:normal;max-width:120px;vertical-align:bottom}td.l,th.l{text-align:left}
+td.hl{background:#fde8e8;color:#b3261e;font-weight:600}.verdict{padding:8px 12px;border:2px solid}
+.verdict.pass{border-color:#137333;background:#e6f4ea}.verdict.fail{border-color:#b3261e;background:#fde8e8}
 tr.failed td{background:#fde8e8}.ok{color:#137333}.bad{color:#b3261e;font-weight:600}
 .note{color:#555;font-size:13px}img{max-width:100%;height:auto}
 .scroll{overflow-x:auto}
@@ -38,16 +40,25 @@ def fmt(v: Any) -> str:
 
 
 def table(header: Sequence[str], rows: Sequence[Sequence[Any]], left: int = 1,
-          row_classes: Sequence[str] | None = None) -> str:
-    """An HTML table (in a horizontally scrolling box): the first ``left`` columns left-aligned."""
+          row_classes: Sequence[str] | None = None, cell_classes: Sequence[Sequence[str]] | None = None,
+          cell_titles: Sequence[Sequence[str]] | None = None) -> str:
+    """An HTML table (headers wrap; in a horizontally scrolling box if still too wide): the first ``left``
+    columns left-aligned; ``cell_classes`` / ``cell_titles`` (per row, per cell; "" for none) mark cells,
+    e.g. ``hl`` for a highlighted value with its reason as the title."""
     e = html.escape
     th = "".join(f'<th class="l">{e(h)}</th>' if i < left else f"<th>{e(h)}</th>" for i, h in enumerate(header))
     body = []
     for j, r in enumerate(rows):
         cls = f' class="{row_classes[j]}"' if row_classes and row_classes[j] else ""
-        tds = "".join(f'<td class="l">{e(fmt(v))}</td>' if i < left else f"<td>{e(fmt(v))}</td>"
-                      for i, v in enumerate(r))
-        body.append(f"<tr{cls}>{tds}</tr>")
+        tds = []
+        for i, v in enumerate(r):
+            c = ["l"] if i < left else []
+            if cell_classes and i < len(cell_classes[j]) and cell_classes[j][i]:
+                c.append(cell_classes[j][i])
+            title = cell_titles[j][i] if cell_titles and i < len(cell_titles[j]) else ""
+            attrs = (f' class="{" ".join(c)}"' if c else "") + (f' title="{e(title)}"' if title else "")
+            tds.append(f"<td{attrs}>{e(fmt(v))}</td>")
+        body.append(f"<tr{cls}>{''.join(tds)}</tr>")
     return f'<div class="scroll"><table><thead><tr>{th}</tr></thead><tbody>{"".join(body)}</tbody></table></div>'
 
 

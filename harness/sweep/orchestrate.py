@@ -20,7 +20,7 @@ import re
 import shutil
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -49,6 +49,11 @@ class SweepResult:
     skipped: list[str] = field(default_factory=list)
     executed: list[RunOutcome] = field(default_factory=list)
     wall_time_s: float = 0.0
+    checks: list | None = None       # harness.check.baseline.CheckRow per check, with a baseline
+
+    @property
+    def regressions(self) -> list:
+        return [c for c in self.checks or [] if c.failed]
 
     @property
     def failed(self) -> list[dict]:
@@ -123,13 +128,14 @@ def refuse_runs_not_in_spec(runs_dir: Path, ids: set[str]) -> None:
                           f"or choose another --out")
 
 
-def execute(ex: Executor, todo: Sequence[RunTask], runs_dir: Path, progress: bool) -> list[RunOutcome]:
-    """Run ``todo`` on ``ex`` under a progress bar; return the outcomes in the order they came.
+def execute(ex: Executor, todo: Sequence[RunTask], runs_dir: Path, progress: bool,
+            desc: str = "sweep") -> list[RunOutcome]:
+    """Run ``todo`` on ``ex`` under a progress bar named ``desc`` (the command); return the outcomes in order.
 
     However it ends (Ctrl-C and SIGTERM included) the workers are ended first, then what they left
     unfinished is removed (:func:`clean_leftovers`); finished runs stay.
     """
-    bar = _progress(len(todo), progress)
+    bar = _progress(len(todo), progress, desc)
     outcomes = ex.run(todo, runs_dir)
     executed: list[RunOutcome] = []
     n_failed = 0
@@ -155,18 +161,22 @@ def with_outcomes(rows: list[dict], executed: list[RunOutcome]) -> list[dict]:
     return rows
 
 
-def _progress(total: int, enabled: bool):
+def _progress(total: int, enabled: bool, desc: str = "sweep"):
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="run", desc="sweep", disable=not enabled, file=sys.stderr, dynamic_ncols=True)
+    return tqdm(total=total, unit="run", desc=desc, disable=not enabled, file=sys.stderr, dynamic_ncols=True)
 
 
 def run_sweep(spec_path: str | Path, out: str | Path, *, executor: str = "local", workers: int = 1,
               resume: bool = False, address: str | None = None, videos: bool = False, progress: bool = True,
               make: Callable[..., Executor] = make_executor,
               cache: FrameCache | Callable[[], FrameCache | None] | None = None,
-              run_timeout_s: float | None = None) -> SweepResult:
+              run_timeout_s: float | None = None, baseline: Mapping | None = None,
+              baseline_path: str | None = None) -> SweepResult:
     """Run a sweep; raises :class:`~monorarp.core.errors.UserError` (nothing run) for a bad spec, output or executor.
+
+    ``baseline`` (:func:`harness.check.baseline.load_baseline`'s mapping, read from ``baseline_path``): the
+    rows are regression-checked against it (``result.checks``) and the verdict heads ``report.html``.
 
     ``run_timeout_s``: a run taking longer (seconds of wall time) is ended and recorded as failed.
 
@@ -184,13 +194,13 @@ def run_sweep(spec_path: str | Path, out: str | Path, *, executor: str = "local"
                            for t in expansion.tasks]
     getattr(ex, "start", lambda: None)()         # e.g. connect to Ray, before DIR is touched
     try:
-        return _run(ex, expansion, spec_path, out, resume, progress, t0)
+        return _run(ex, expansion, spec_path, out, resume, progress, t0, baseline, baseline_path)
     finally:
         getattr(ex, "close", lambda: None)()
 
 
 def _run(ex: Executor, expansion: Expansion, spec_path: str | Path, out: Path, resume: bool, progress: bool,
-         t0: float) -> SweepResult:
+         t0: float, baseline: Mapping | None = None, baseline_path: str | None = None) -> SweepResult:
     runs_dir = prepare_out_dir(out, resume)
     tasks = expansion.tasks
     if resume:
@@ -201,8 +211,14 @@ def _run(ex: Executor, expansion: Expansion, spec_path: str | Path, out: Path, r
     result.executed = execute(ex, todo, runs_dir, progress)
     spec = expansion.spec
     result.rows = with_outcomes(collect_rows(tasks, runs_dir), result.executed)
+    if baseline is not None:
+        from harness.check.baseline import RunResult, compare
+
+        result.checks = compare(baseline, {r["id"]: RunResult(r["status"], r.get("error"), dict(r["metrics"]))
+                                           for r in result.rows})
     report = render_report(result.rows, runs_dir, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),
-                           headline=spec.metrics, threshold_s=spec.warning_threshold_s)
+                           headline=spec.metrics, threshold_s=spec.warning_threshold_s, checks=result.checks,
+                           baseline_path=baseline_path)
     try:
         with interrupts_deferred():          # the summary and its report: both or neither
             write_summary(out, result.rows, name=spec.name, spec_path=str(spec_path), grid_keys=list(spec.grid),

@@ -61,9 +61,21 @@ def int_in(lo: int, hi: int) -> Callable[[str], int]:
 
 
 def out_dir(text: str) -> Path:
-    """An output directory path; the empty one (which would be the current directory) is refused."""
+    """An output directory path. Refused: the empty one, the current directory (``.``, ``./``, its absolute
+    path) and any directory above it (``..``, ``/``): the outputs replace the directory as a whole, so the
+    current one would be renamed away under the user's shell and a parent of it would hold the user's work."""
     if not text:
         raise argparse.ArgumentTypeError("must name a directory, got ''")
+    try:
+        here, target = Path.cwd().resolve(), Path(text).resolve()
+    except (OSError, RuntimeError, ValueError):   # a deleted cwd, a link loop, a NUL byte: the writer reports it
+        return Path(text)
+    if target == here:
+        raise argparse.ArgumentTypeError(f"must name a directory of its own, not the current directory, "
+                                         f"got {_shown(text)}")
+    if target in here.parents:
+        raise argparse.ArgumentTypeError(f"must name a directory of its own, not one above the current "
+                                         f"directory, got {_shown(text)}")
     return Path(text)
 
 

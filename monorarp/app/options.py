@@ -8,7 +8,12 @@ command-line defaults stated here because they differ from a bare config:
 
 * ``--ego-speed`` defaults to :data:`CLI_EGO_SPEED` (a config without the option has no ego-speed stage);
 * ``--velocity`` (the geometric state estimator's) is written into the config, default ``kalman``;
-* ``--horizon calibrated`` (the default) means no horizon stage.
+* ``--horizon calibrated`` (the default) means no horizon stage;
+* ``--detector`` defaults to :data:`~monorarp.pipeline.config.REAL_WORLD_DETECTOR` where the frames are real
+  (``video``: :data:`REAL_FRAMES`), to :class:`PipelineConfig`'s (``centernet``) where they are rendered;
+* ``--size-prior`` (the state estimator's) is ``on`` where the frames are real (:data:`REAL_FRAMES`: the
+  settings of :data:`~monorarp.state.config.REAL_FRAMES_STATE` written into the config); elsewhere, left out,
+  the config is as given.
 
 The TTC thresholds (the warning stage's alert, the paper's per-object cue) are defined once, in
 :mod:`monorarp.warning.thresholds`. The other options several commands share (``--frames``, ``--out``,
@@ -23,7 +28,8 @@ from typing import Any
 
 from monorarp.pipeline import registry
 from monorarp.core.errors import UserError
-from monorarp.pipeline.config import ComponentConfig, PipelineConfig, check_weak_detections
+from monorarp.pipeline.config import REAL_WORLD_DETECTOR, ComponentConfig, PipelineConfig, check_weak_detections
+from monorarp.state.config import REAL_FRAMES_STATE
 
 STAGES = ("detector", "tracker", "state", "risk", "ego_speed", "horizon")
 CLI_EGO_SPEED = "ground_track"          # the run/video commands' ego-speed stage unless --ego-speed none
@@ -31,6 +37,8 @@ VELOCITIES = ("kalman", "difference")
 DEFAULT_VELOCITY = "kalman"
 CALIBRATED = "calibrated"               # --horizon: the calibration's horizon, no horizon stage
 NONE = "none"                           # --ego-speed: no ego-speed stage
+REAL_FRAMES = {"detector": REAL_WORLD_DETECTOR,   # the defaults of the commands whose frames are real (video)
+               "size_prior": "on"}
 
 
 class _RegistryHelp(str):
@@ -73,8 +81,9 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
 
     if "detector" in stages:
         p.add_argument("--detector", default=default("detector"), metavar="NAME|PATH.onnx",
-                       help=_RegistryHelp("detector", "registered detector ({names}) or an ONNX model file "
-                                          f"(CenterNet or YOLO layout); default: {default('detector')}"))
+                       help=_RegistryHelp("detector", "registered detector ({names}; 'yolo' ships no weights: it "
+                                          "needs a YOLOv8/YOLO11 ONNX export given as PATH.onnx) or an ONNX model "
+                                          f"file (CenterNet, YOLOX or YOLO layout); default: {default('detector')}"))
         p.add_argument("--refine-bottom", choices=("on", "off"), default=None,
                        help="CenterNet: sub-pixel bottom-edge refinement from the image (default: the detector's)")
         p.add_argument("--weak-detections", type=float, default=None, metavar="SCORE",
@@ -87,6 +96,10 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
     if "state" in stages:
         p.add_argument("--velocity", choices=VELOCITIES, default=DEFAULT_VELOCITY,
                        help=f"relative velocity of the state estimator (default: {DEFAULT_VELOCITY})")
+        size = defaults.get("size_prior")
+        p.add_argument("--size-prior", choices=("on", "off"), default=size,
+                       help="fuse each vehicle's distance from its kind's height and width with the ground plane's "
+                            f"(default: {size or 'the config, off'})")
     if "ego_speed" in stages:
         p.add_argument("--ego-speed", default=default("ego_speed"), metavar="NAME|none",
                        help=_RegistryHelp("ego_speed", "lane-marking ego-speed estimator ({names}), or none "
@@ -147,7 +160,11 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
         if "detector" in stages and getattr(args, "weak_detections", None) is not None:
             check_weak_detections(update["detector"], [args.tracker], "--weak-detections")
     if "state" in stages:
-        update["state"] = ComponentConfig(name=cfg.state.name, kwargs={**cfg.state.kwargs, "velocity": args.velocity})
+        kw = {**cfg.state.kwargs, "velocity": args.velocity}
+        size = getattr(args, "size_prior", None)
+        if size is not None:
+            kw.update(REAL_FRAMES_STATE if size == "on" else {"size_prior": False})
+        update["state"] = ComponentConfig(name=cfg.state.name, kwargs=kw)
     if "risk" in stages:
         update["risk"] = _component("risk", "--risk", args.risk, check=check)
     if "ego_speed" in stages:
@@ -159,8 +176,9 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
     return cfg.model_copy(update=update)
 
 
-def default_pipeline_config() -> PipelineConfig:
-    """What :func:`pipeline_config` gives for a command line with every stage's option left out."""
+def default_pipeline_config(defaults: dict[str, str] | None = None) -> PipelineConfig:
+    """What :func:`pipeline_config` gives for a command line with every stage's option left out
+    (``defaults``: as :func:`add_pipeline_options`'s, e.g. :data:`REAL_FRAMES`)."""
     p = argparse.ArgumentParser(add_help=False)
-    add_pipeline_options(p)
+    add_pipeline_options(p, defaults=defaults)
     return pipeline_config(p.parse_args([]))

@@ -40,6 +40,8 @@ class CameraError(UserError, ValueError):
 
 
 MAX_PIXELS = 1_000_000   # a camera file's width / height at most (a bound far above any camera's)
+#: A camera file's smallest width x height (px): below it a car at 20 m is a few pixels, no detector finds it.
+MIN_FILE_SIZE = (160, 90)
 _FINITE = ("fx", "fy", "cx", "cy", "height_m", "pitch_rad", "lateral_offset_m", "forward_offset_m", "roll_rad")
 # the numeric fields of a camera file; every one given is checked, also when another field takes precedence
 _FILE_NUMBERS = ("fx", "fy", "cx", "cy", "hfov_deg", "height_m", "pitch_rad", "pitch_deg", "horizon_row",
@@ -115,6 +117,19 @@ def _unknown_keys(d: dict) -> str | None:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
     return (f"unknown key{'s' if len(unknown) > 1 else ''} {names}{hint}; a camera file holds only "
             f"{', '.join(FILE_KEYS)}")
+
+
+def _check_file_size(d: dict, path: Path) -> None:
+    """:class:`CameraError` for a camera file whose width x height is below :data:`MIN_FILE_SIZE` (checked
+    first: its other fields, e.g. a horizon row outside so small an image, are not the problem)."""
+    try:
+        w, h = _pixels(d.get("width"), "width"), _pixels(d.get("height"), "height")
+    except CameraError:
+        return                                # from_dict names the bad or missing field
+    if w < MIN_FILE_SIZE[0] or h < MIN_FILE_SIZE[1]:
+        raise CameraError(f"{path}: the camera file's image, {w}x{h} px, is too small (at least "
+                          f"{MIN_FILE_SIZE[0]}x{MIN_FILE_SIZE[1]}: a car 20 m ahead would be a few pixels); give "
+                          "the width and height of the video's frames")
 
 
 @dataclass(frozen=True)
@@ -341,4 +356,5 @@ class CameraModel:
                 raise CameraError(f"{path}: cannot parse camera file ({str(e).removeprefix(f'{path}: ')})") from None
         if not isinstance(data, dict):
             raise CameraError(f"{path}: camera file must hold a mapping")
+        _check_file_size(data, path)
         return cls.from_dict(data, source=str(path))

@@ -9,7 +9,9 @@ never a traceback and never unbounded memory or time:
 
 * :func:`read_text` -- at most ``max_bytes`` (size checked before reading),
   strict UTF-8 (a leading BOM is dropped), OS errors (missing file, directory,
-  permission, name too long) reported with their reason.
+  permission, name too long) reported with their reason (:func:`path_problem`).
+* :func:`path_problem` -- the true reason a path cannot be read as a file (or directory): a
+  directory, a broken symbolic link, a link loop, a file where a directory belongs, missing.
 * :func:`parse_yaml` -- YAML 1.1 *safe* subset restricted to JSON types: mappings,
   sequences, strings, numbers, booleans, null. A key given twice in one mapping is refused. Tags that build other types
   (``!!python/*``, ``!!binary``, ``!!set``, ``!!omap``, ``!!pairs``, ``!!timestamp``)
@@ -27,6 +29,7 @@ never a traceback and never unbounded memory or time:
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 from pathlib import Path
@@ -50,6 +53,53 @@ MAX_NODES = 100_000
 MAX_INT_BITS = 256
 
 
+# ------------------------------------------------------------------------ paths
+def path_problem(path: str | Path, want: str = "file") -> str | None:
+    """Why ``path`` cannot be opened as a ``want`` ("file" or "directory"), or None when it can: "is a
+    directory", "not a directory", "broken symbolic link to T", "symbolic link loop", "not a directory:
+    P" (a file P where a directory of the path belongs), "no such file", "no such directory", or the OS's
+    words (permission, name too long). Every reader of a path the user names reports this, never a guess."""
+    path = Path(path)
+    try:
+        os.stat(path)
+    except OSError as e:
+        return _stat_problem(path, e, want)
+    except ValueError as e:          # an embedded NUL byte
+        return str(e)
+    is_dir = os.path.isdir(path)
+    if want == "file" and is_dir:
+        return "is a directory"
+    if want == "directory" and not is_dir:
+        return "not a directory"
+    if not os.access(path, os.R_OK | (os.X_OK if is_dir else 0)):
+        return "permission denied"
+    return None
+
+
+def _stat_problem(path: Path, e: OSError, want: str) -> str:
+    """The reason of ``os.stat(path)``'s error ``e``, told apart by looking at the link and the parents."""
+    if e.errno == errno.ELOOP:
+        return "symbolic link loop"
+    if e.errno == errno.ENOENT and os.path.islink(path):
+        return f"broken symbolic link to {os.readlink(path)}"
+    if e.errno in (errno.ENOENT, errno.ENOTDIR):
+        for parent in reversed(path.parents):       # the first part of the path that is not a directory
+            if os.path.lexists(parent) and not os.path.isdir(parent):
+                return f"not a directory: {parent.name}" if os.path.exists(parent) else _stat_reason(parent)
+            if not os.path.lexists(parent):
+                break
+        return "no such directory" if want == "directory" else "no such file"
+    return e.strerror or type(e).__name__
+
+
+def _stat_reason(parent: Path) -> str:
+    try:
+        os.stat(parent)
+    except OSError as e:
+        return f"{parent.name}: {'symbolic link loop' if e.errno == errno.ELOOP else 'broken symbolic link'}"
+    return "no such file"
+
+
 # ------------------------------------------------------------------------ text
 def read_text(path: str | Path, what: str, error: type[Exception] = UserError,
               max_bytes: int = MAX_CONFIG_BYTES) -> str:
@@ -61,10 +111,9 @@ def read_text(path: str | Path, what: str, error: type[Exception] = UserError,
             if st.st_size > max_bytes:
                 raise error(f"{path}: {what} too large ({_size(st.st_size)}; at most {_size(max_bytes)})")
             data = f.read(max_bytes + 1)   # a pipe or a growing file has no trustworthy size
-    except IsADirectoryError:
-        raise error(f"{path}: cannot read {what} (is a directory)") from None
     except OSError as e:
-        raise error(f"{path}: cannot read {what} ({e.strerror or type(e).__name__})") from None
+        reason = path_problem(path) or e.strerror or type(e).__name__
+        raise error(f"{path}: cannot read {what} ({reason})") from None
     except ValueError as e:   # e.g. an embedded NUL byte in the path
         raise error(f"{path!r}: cannot read {what} ({e})") from None
     if len(data) > max_bytes:

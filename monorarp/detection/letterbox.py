@@ -36,6 +36,14 @@ class Letterbox:
         pad_y = int(round((dst_h - new_h) / 2 - 0.1))
         return cls(src_w, src_h, dst_w, dst_h, new_w, new_h, pad_x, pad_y)
 
+    @classmethod
+    def top_left(cls, src_w: int, src_h: int, dst_w: int, dst_h: int) -> "Letterbox":
+        """YOLOX-style placement: scale ``min(dst/src)``, the resized image in the canvas's top-left corner
+        (the padding right and below it); the resized size rounded down, as YOLOX's own preprocessing does."""
+        r = min(dst_w / src_w, dst_h / src_h)
+        new_w, new_h = max(min(int(src_w * r), dst_w), 1), max(min(int(src_h * r), dst_h), 1)
+        return cls(src_w, src_h, dst_w, dst_h, new_w, new_h, 0, 0)
+
     @property
     def sx(self) -> float:
         return self.new_w / self.src_w
@@ -44,10 +52,12 @@ class Letterbox:
     def sy(self) -> float:
         return self.new_h / self.src_h
 
-    def apply(self, image: np.ndarray, pad_value: int = 114) -> np.ndarray:
-        """(src_h, src_w, C) uint8 -> (dst_h, dst_w, C) uint8 canvas."""
+    def apply(self, image: np.ndarray, pad_value: int = 114, interpolation: int | None = None) -> np.ndarray:
+        """(src_h, src_w, C) uint8 -> (dst_h, dst_w, C) uint8 canvas. ``interpolation``: a cv2 ``INTER_*`` flag
+        (default: area averaging when shrinking, bilinear when enlarging)."""
         if image.shape[1] != self.new_w or image.shape[0] != self.new_h:
-            interp = cv2.INTER_AREA if self.new_w < self.src_w else cv2.INTER_LINEAR
+            interp = interpolation if interpolation is not None else (
+                cv2.INTER_AREA if self.new_w < self.src_w else cv2.INTER_LINEAR)
             image = cv2.resize(image, (self.new_w, self.new_h), interpolation=interp)
         return cv2.copyMakeBorder(image, self.pad_y, self.dst_h - self.new_h - self.pad_y,
                                   self.pad_x, self.dst_w - self.new_w - self.pad_x,

@@ -21,8 +21,14 @@ class ComponentConfig(BaseModel):
     kwargs: dict[str, Any] = Field(default_factory=dict)
 
 
+#: The detector where the frames are real (``monorarp video``, ``monorarp eval kitti``): COCO-trained YOLOX-Nano.
+#: :class:`PipelineConfig`'s own (``centernet``, trained on renders) is the simulation commands' (docs/pipeline.md).
+REAL_WORLD_DETECTOR = "yolox"
+
+
 class PipelineConfig(BaseModel):
-    """Which component fills each stage: the one place of every stage's default. ``ego_speed``, ``warning``
+    """Which component fills each stage: the one place of every stage's default (the detector's on
+    simulated frames; on real ones :data:`REAL_WORLD_DETECTOR`). ``ego_speed``, ``warning``
     and ``horizon`` are optional (None = no such stage; no horizon stage = the calibrated horizon). The
     detector is a registered name or an ``.onnx`` path (:func:`monorarp.pipeline.detectors.build_detector`)."""
 

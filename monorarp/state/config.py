@@ -39,6 +39,8 @@ How the defaults were chosen:
 * ``registration_top`` 0 and ``registration_interpolation`` ``"cubic"`` scatter 25-35 % less against
   the true depth ratio but moved no warning figure, so they are opt-in (docs/scale_fusion.md,
   thirteenth round).
+* ``size_prior`` off: on rendered frames the ground is flat and the camera level, so the ground plane alone is
+  exact; on real roads it reads 10 % near (docs/state_estimation.md). The real-frame commands turn it on.
 * ``offset_learn_margin_px`` None: a margin (e.g. 16 px) keeps a detector box that stops short of the
   border while its vehicle enters the view from teaching a wrong near-edge offset, but also keeps a
   whole vehicle near the border from teaching the right one (tests/test_state.py: a 1.6 m/s
@@ -142,6 +144,20 @@ class StateConfig(BaseModel):
     grade_std: float = Field(0.0, ge=0, description=(
         "one-sigma (rise/run) of the road's grade ahead relative to the ego's, added to d_y_std (0: flat)"))
 
+    # Size prior (monorarp.state.size_prior): the distance from the box's height / width given the vehicle's kind
+    size_prior: bool = Field(False, description=(
+        "fuse each box's distance from its kind's height and width with the ground plane's (inverse variance)"))
+    size_priors: dict[str, tuple[float, float, float, float, float, float]] | None = Field(None, description=(
+        "kind -> (height, its std, width, its std, length, its std) m; None: monorarp.state.size_prior.SIZE_PRIORS"))
+    size_prior_width: bool = Field(True, description="the size prior also uses the box width (whole boxes only)")
+    size_prior_edge_std_px: float = Field(1.0, gt=0, description=(
+        "one-sigma (px) of each box edge in the size prior's distances"))
+    ground_pitch_std: float = Field(0.01, ge=0, description=(
+        "one-sigma (rad, or rise/run) of the camera's pitch and the road's grade under the vehicle, in the "
+        "ground plane's one-sigma the size prior is fused with"))
+    size_prior_hidden_share: float = Field(0.1, ge=0, lt=1, description=(
+        "a box over more than this share of its area behind a nearer vehicle's box takes no size prior"))
+
     # Looming: expansion rate of the box width (monorarp.state.expansion)
     expansion_process_std: float = Field(1.0, gt=0, description=(
         "process noise (1/s^2) of the expansion-rate filter where no distance or expansion_accel_std is given"))
@@ -164,6 +180,10 @@ class StateConfig(BaseModel):
         "fuse the registered scale into the range filter, gated at this many sigmas ('ca' only); None: off"))
     fusion_pixel_std: float | None = Field(None, gt=0, description=(
         "the scale's one-sigma (px of box width) in that fusion; None: registration_pixel_std"))
+
+
+#: The state settings of the commands whose frames are real (``video``, ``eval kitti`` on real data): the size prior.
+REAL_FRAMES_STATE: dict[str, Any] = {"size_prior": True}
 
 
 def state_config(base: StateConfig | None = None, overrides: Mapping[str, Any] | None = None) -> StateConfig:

@@ -30,6 +30,7 @@ from monorarp.state.measurement import (NearEdgeOffsets, border_cut_boxes, borde
                                         horizon_gain, near_limit_m, plausible_boxes)
 from monorarp.state.noise import MeasurementNoise, ProcessNoise, bias_variance, prior_variance
 from monorarp.state.scale_change import LoomingRegistration, RateWindow, lateral_displacement
+from monorarp.state.size_prior import SIZE_PRIORS, fuse, height_distance, priors_of, width_distance
 
 
 class StateEstimator:
@@ -86,6 +87,7 @@ class StateEstimator:
         self._extra_px_var = 0.0      # this frame's white horizon noise (px^2), added to the measurement's
         self._profile = None          # this frame's measured road profile (a GroundReading's), None: flat ground
         self._ground_std: np.ndarray | None = None   # per box, the profile's one-sigma added to d_y_std (m)
+        self._prior_std: np.ndarray | None = None    # per box, the size-prior fusion's one-sigma (m; NaN: none)
         self.reset()
 
     def reset(self) -> None:
@@ -141,6 +143,36 @@ class StateEstimator:
         return distance_std(self.camera, d_y, filter_std, horizon_std_px, side_cut, c.edge_std_px,
                             c.border_edge_std_px, c.contact_offset_std_m, c.grade_std, c.contact_offset_m)
 
+    def size_fused(self, labels: Sequence[str], boxes: np.ndarray, d_y: np.ndarray,
+                   horizon_std_px: float) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """The ground plane's ``d_y`` (M,) of ``boxes`` fused with their size prior's (:mod:`monorarp.state.size_prior`):
+        ``(fused d_y, its one-sigma, the parts)``; the parts (``ground``, ``height``, ``width``, each with a ``_std``)
+        are each reading and its one-sigma (m; NaN where it takes no part). A box whose ground distance is NaN, or
+        whose kind has no prior, keeps the ground plane's reading (one-sigma NaN where there is no prior)."""
+        c = self.config
+        cam, tol = self.camera, self.border_tol_px
+        prior = priors_of(labels, SIZE_PRIORS if c.size_priors is None else c.size_priors)
+        flags = border_flags(cam, boxes, tol)
+        side_cut = flags[:, :2].any(axis=1)
+        g_std = distance_std(cam, d_y, np.zeros(len(d_y)), horizon_std_px, side_cut, c.edge_std_px,
+                             c.border_edge_std_px, c.contact_offset_std_m, math.hypot(c.grade_std, c.ground_pitch_std),
+                             c.contact_offset_m)
+        if self._ground_std is not None:
+            g_std = np.hypot(g_std, self._ground_std)
+        hidden = occluded(boxes, c.size_prior_hidden_share) if len(boxes) > 1 else np.zeros(len(boxes), bool)
+        top_cut = boxes[:, 1] <= -0.5 + (tol or 0.0)
+        h, h_std = height_distance(cam, boxes, prior[:, 0], prior[:, 1], c.size_prior_edge_std_px, c.contact_offset_m)
+        h = np.where(hidden | top_cut | flags[:, 2], np.nan, h)
+        w = w_std = np.full(len(d_y), np.nan)
+        if c.size_prior_width:
+            w, w_std = width_distance(cam, boxes, prior[:, 2], prior[:, 3], prior[:, 4], prior[:, 5],
+                                      c.size_prior_edge_std_px)
+            w = np.where(hidden | side_cut, np.nan, w)
+        fused, std = fuse([d_y, h, w], [g_std, h_std, w_std])
+        has = np.isfinite(d_y) & np.isfinite(prior[:, 0])
+        parts = {"ground": d_y, "ground_std": g_std, "height": h, "height_std": h_std, "width": w, "width_std": w_std}
+        return np.where(has, fused, d_y), np.where(has, std, np.nan), parts
+
     def _noise(self) -> MeasurementNoise:
         """This frame's measurement noise model (its camera, its horizon's white noise)."""
         c = self.config
@@ -188,6 +220,7 @@ class StateEstimator:
             return self._update(tracks, t, float(horizon.std_px), image)
         finally:
             self.camera, self._extra_px_var, self._profile, self._ground_std = nominal, 0.0, None, None
+            self._prior_std = None
 
     def _update(self, tracks: Sequence[Track], t: float, horizon_std_px: float,
                 image: np.ndarray | None = None) -> dict[int, ObjectState]:
@@ -210,6 +243,9 @@ class StateEstimator:
         ids = [tr.id for tr in usable]
         boxes = self.border_cut_boxes(self.plausible_boxes(np.array([tr.box for tr in usable], dtype=float)))
         d_y, terms = self._terms(ids, boxes)
+        self._prior_std = None
+        if c.size_prior:
+            d_y, self._prior_std, _ = self.size_fused([tr.label for tr in usable], boxes, d_y, horizon_std_px)
         coasting = np.array([tr.coasting for tr in usable])
         known = self._filter.known(ids)
         # A new track needs both coordinates from its box; a known one is output in any case
@@ -263,9 +299,13 @@ class StateEstimator:
             band = border_flags(self.camera, boxes, c.side_band_frac * self.camera.width)
             biased |= (band[:, 1] & (boxes[:, 0] > self.camera.cx)) | (band[:, 0] & (boxes[:, 2] < self.camera.cx))
         std[biased, 2] = np.maximum(std[biased, 2], c.side_cut_lateral_std_mps)
+        filter_std = std[:, 1].copy()
         std[:, 1] = self.distance_std(out[:, 1], std[:, 1], horizon_std_px, side_cut)
         if self._ground_std is not None:
             std[:, 1] = np.hypot(std[:, 1], self._ground_std)
+        if self._prior_std is not None:      # the fusion's one-sigma holds the errors the filter cannot see
+            fused = np.isfinite(self._prior_std)
+            std[fused, 1] = np.hypot(filter_std[fused], self._prior_std[fused])
         # A distance only predicted for longer than max_unmeasured_s (the box gives none: its
         # contact line is out of view at a side border) is no estimate any more: constant
         # velocity carries it through the ego. A box cut by the bottom border stays (clamped).

@@ -10,10 +10,18 @@ docs/warning.md, "The warning's TTC and the risk stage's".
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from monorarp.app.display.style import RED, Colour, ttc_colour
-from monorarp.core.types import FrameResult, Track, WarningState
+from monorarp.core.boxes import iou_matrix
+from monorarp.core.types import Box, FrameResult, Track, WarningState
+
+MISSED_IOU = 0.3          # a truth box no track overlaps at this IoU or more is "missed"
+MISSED_TEXT = "missed"
+#: The legend's entries, top to bottom: (sample drawn beside it, text); samples: :func:`..draw._legend`.
+LEGEND = (("box", "estimate"), ("thin", "coasting"), ("dashed", "missed truth"), ("warned", "FCW warned"))
 
 
 def _finite(v: float | None) -> bool:
@@ -23,6 +31,21 @@ def _finite(v: float | None) -> bool:
 def is_warned(track_id: int, warning: WarningState) -> bool:
     """Whether the (active) warning alerts on track ``track_id``."""
     return warning.active and track_id == warning.track_id
+
+
+def missed_truth(truth_boxes: Sequence[Box], tracks: Sequence[Track]) -> list[int]:
+    """Indices of the truth boxes that no track's box overlaps at IoU >= :data:`MISSED_IOU`."""
+    if not len(truth_boxes):
+        return []
+    if not tracks:
+        return list(range(len(truth_boxes)))
+    best = iou_matrix(np.asarray(truth_boxes, float), np.asarray([t.box for t in tracks], float)).max(axis=1)
+    return [i for i, v in enumerate(best) if v < MISSED_IOU]
+
+
+def cue_text(warning_s: float) -> str:
+    """The legend's colour key of the per-object TTC cue."""
+    return f"colour: TTC <{warning_s:g}s red, <{2 * warning_s:g}s orange"
 
 
 def header_lines(result: FrameResult, ego_speed: float | None) -> list[str]:

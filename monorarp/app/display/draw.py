@@ -7,12 +7,13 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from monorarp.app.display.content import banner_lines, gauge_text, header_lines
-from monorarp.app.display.layout import FrameLayout, gauge_geometry, header_origins, layout_frame
-from monorarp.app.display.placement import Rect
+from monorarp.app.display.content import LEGEND, MISSED_TEXT, banner_lines, gauge_text, header_lines, missed_truth
+from monorarp.app.display.layout import (FrameLayout, gauge_geometry, header_origins, layout_frame, legend_geometry,
+                                         legend_lines)
+from monorarp.app.display.placement import Rect, box_rect
 from monorarp.app.display.style import (BANNER_RED, BLACK, GREEN, GREY, ORANGE, RED, WHITE, YELLOW, banner_pad,
                                         banner_scales, font_scale, gauge_font_scale, highlight_band,
-                                        highlight_outset, thickness, ttc_colour)
+                                        highlight_outset, legend_font_scale, thickness, ttc_colour)
 from monorarp.app.display.text import FONT, line_height, text_rect, text_size
 from monorarp.core.types import Box, FrameResult
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
@@ -59,6 +60,56 @@ def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warni
     _text(img, gauge_text(risk, kind), geo.bottom, scale, colour)
 
 
+def _dashed_rect(img: np.ndarray, r: Rect, colour, dash: int = 6) -> None:
+    """A 1 px dashed rectangle over ``r``'s pixels (dashes of ``dash`` px, gaps as long)."""
+    x1, y1, x2, y2 = r[0], r[1], r[2] - 1, r[3] - 1
+    for a in range(x1, x2 + 1, 2 * dash):
+        b = min(a + dash - 1, x2)
+        cv2.line(img, (a, y1), (b, y1), colour, 1)
+        cv2.line(img, (a, y2), (b, y2), colour, 1)
+    for a in range(y1, y2 + 1, 2 * dash):
+        b = min(a + dash - 1, y2)
+        cv2.line(img, (x1, a), (x1, b), colour, 1)
+        cv2.line(img, (x2, a), (x2, b), colour, 1)
+
+
+def _draw_truth(img: np.ndarray, result: FrameResult, truth_boxes: Sequence[Box], scale: float) -> None:
+    """Truth boxes thin grey; those no track overlaps (:func:`~.content.missed_truth`) dashed, labelled "missed"."""
+    missed = set(missed_truth(truth_boxes, result.tracks))
+    for i, b in enumerate(truth_boxes):
+        r = box_rect(b)
+        if i not in missed:
+            cv2.rectangle(img, (r[0], r[1]), (r[2] - 1, r[3] - 1), GREY, 1)
+            continue
+        _dashed_rect(img, r, GREY, dash=max(3, img.shape[0] // 90))
+        _, th, base = text_size(MISSED_TEXT, scale, thickness(scale))
+        _text(img, MISSED_TEXT, (r[0], r[1] - th - base - 4), scale, GREY)
+
+
+def _draw_legend(img: np.ndarray, rect: Rect, sample: int, lh: int, warning_s: float, scale: float) -> None:
+    """The legend box: a sample of each kind of box beside its text, then the TTC cue's colour key."""
+    x1, y1, x2, y2 = rect
+    roi = img[y1:y2, x1:x2]
+    roi[:] = (roi.astype(np.uint16) * 2 // 5).astype(np.uint8)      # darkened, the scene still shows through
+    thick = thickness(scale)
+    for k, text in enumerate(legend_lines(warning_s)):
+        top = y1 + 3 + k * lh
+        sx1, sy1, sx2, sy2 = x1 + 4, top + 2, x1 + sample - 2, top + lh - 3
+        kind = LEGEND[k][0] if k < len(LEGEND) else None
+        if kind == "box":
+            cv2.rectangle(img, (sx1, sy1), (sx2, sy2), ORANGE, thick + 1)
+        elif kind == "thin":
+            cv2.rectangle(img, (sx1, sy1), (sx2, sy2), ORANGE, 1)
+        elif kind == "dashed":
+            _dashed_rect(img, (sx1, sy1, sx2 + 1, sy2 + 1), GREY, dash=3)
+        elif kind == "warned":
+            cv2.rectangle(img, (sx1, sy1), (sx2, sy2), RED, max(2, thick + 1))
+            cv2.rectangle(img, (sx1 - 2, sy1 - 2), (sx2 + 2, sy2 + 2), WHITE, 1)
+        _, th, _ = text_size(text, scale, thick)
+        tx = x1 + sample + 4 if kind is not None else x1 + 4
+        cv2.putText(img, text, (tx, top + th + 1), FONT, scale, WHITE, thick, cv2.LINE_AA)
+
+
 def _nearest_point(rect: Rect, p: tuple[float, float]) -> tuple[int, int]:
     """The pixel of ``rect`` nearest to point ``p``."""
     return (int(np.clip(p[0], rect[0], rect[2] - 1)), int(np.clip(p[1], rect[1], rect[3] - 1)))
@@ -97,22 +148,22 @@ def _draw_warning(img: np.ndarray, layout: FrameLayout, result: FrameResult, box
 
 
 def draw_frame(image: np.ndarray, result: FrameResult, *, warning_s: float = TTC_CUE_THRESHOLD_S, risk_full_scale: float = 1.0,
-               ego_speed: float | None = None, truth_boxes: Sequence[Box] = (), copy: bool = True) -> np.ndarray:
+               ego_speed: float | None = None, truth_boxes: Sequence[Box] = (), legend: bool = False,
+               copy: bool = True) -> np.ndarray:
     """The annotated frame for ``result`` drawn on ``image`` (BGR uint8, H x W x 3).
 
     ``warning_s``: the per-object TTC cue (s) of the box colours and the gauge's tick;
     ``ego_speed`` (m/s) overrides ``result.ego_speed`` for the header;
-    ``truth_boxes`` (optional, e.g. ground truth in a simulator) are drawn thin grey.
+    ``truth_boxes`` (optional, e.g. ground truth in a simulator) are drawn thin grey, dashed and labelled
+    "missed" where no track overlaps them; ``legend``: a legend of the box kinds at the bottom left.
     Positions come from :func:`~monorarp.app.display.layout.layout_frame`.
     """
     img = image.copy() if copy else image
     scale = font_scale(img.shape[0])
     thick = thickness(scale)
     line_h = line_height(scale)
-    layout = layout_frame(img.shape, result, warning_s=warning_s, ego_speed=ego_speed)
-    for b in truth_boxes:
-        cv2.rectangle(img, (int(round(b[0] + 0.5)), int(round(b[1] + 0.5))),
-                      (int(round(b[2] - 0.5)), int(round(b[3] - 0.5))), GREY, 1)
+    layout = layout_frame(img.shape, result, warning_s=warning_s, ego_speed=ego_speed, legend=legend)
+    _draw_truth(img, result, truth_boxes, scale)
     coasting = {t.id: t.coasting for t in result.tracks}
     boxes = {lab.track_id: lab.box for lab in layout.labels}
     # Farthest first, so that nearer (more important) boxes are drawn on top.
@@ -149,4 +200,7 @@ def draw_frame(image: np.ndarray, result: FrameResult, *, warning_s: float = TTC
         _, th, _ = text_size("FCW ready", scale, thick)
         cv2.putText(img, "FCW ready", (x1 + 2 * rad + 8, y1 + 2 + th), FONT, scale, GREY, thick, cv2.LINE_AA)
     draw_risk_gauge(img, float(result.risk.risk), risk_full_scale, warning_s, getattr(result.risk, "kind", "inverse_ttc"))
+    if layout.legend is not None:
+        _, sample, lh = legend_geometry(img.shape[0], img.shape[1], warning_s)
+        _draw_legend(img, layout.legend, sample, lh, warning_s, legend_font_scale(img.shape[0]))
     return img

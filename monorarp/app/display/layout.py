@@ -11,11 +11,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from monorarp.app.display.content import (banner_lines, gauge_text, header_lines, label_colour, label_lines,
-                                          label_priority)
+from monorarp.app.display.content import (LEGEND, banner_lines, cue_text, gauge_text, header_lines, label_colour,
+                                          label_lines, label_priority)
 from monorarp.app.display.placement import Rect, box_rect, place_labels
 from monorarp.app.display.style import (Colour, banner_pad, banner_scales, font_scale, gauge_font_scale,
-                                        highlight_outset, thickness)
+                                        highlight_outset, legend_font_scale, thickness)
 from monorarp.app.display.text import line_height, text_rect, text_size
 from monorarp.core.types import FrameResult
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
@@ -45,12 +45,13 @@ class FrameLayout:
     marker: Rect | None              # the triangle above the warned object's box
     highlight: Rect | None           # the warned object's box with its red frame
     labels: tuple[Label, ...] = field(default_factory=tuple)
+    legend: Rect | None = None       # bottom left, only when asked for
 
     @property
     def obstacles(self) -> list[Rect]:
         """The fixed elements labels must keep clear of."""
-        return [self.header, *self.gauge] + [r for r in (self.banner, self.indicator, self.marker, self.highlight)
-                                             if r is not None]
+        return [self.header, *self.gauge] + [r for r in (self.banner, self.indicator, self.marker, self.highlight,
+                                                         self.legend) if r is not None]
 
 
 @dataclass(frozen=True)
@@ -86,10 +87,26 @@ def header_origins(shape: tuple[int, ...], lines: list[str], scale: float) -> li
     return origins
 
 
+def legend_lines(warning_s: float) -> list[str]:
+    """The legend's texts, top to bottom (the first lines get a sample beside them)."""
+    return [text for _, text in LEGEND] + [cue_text(warning_s)]
+
+
+def legend_geometry(h: int, w: int, warning_s: float) -> tuple[Rect, int, int]:
+    """(rectangle, sample width, line height) of the legend at the bottom left of an image ``h`` x ``w`` px."""
+    scale = legend_font_scale(h)
+    lh = line_height(scale)
+    sample = 2 * lh
+    tw = max(text_size(t, scale, thickness(scale))[0] for t in legend_lines(warning_s))
+    lw, lhh = min(w, sample + tw + 10), lh * len(legend_lines(warning_s)) + 6
+    return (2, max(0, h - 2 - lhh), 2 + lw, h - 2), sample, lh
+
+
 def layout_frame(shape: tuple[int, ...], result: FrameResult, *, warning_s: float = TTC_CUE_THRESHOLD_S,
-                 ego_speed: float | None = None) -> FrameLayout:
+                 ego_speed: float | None = None, legend: bool = False) -> FrameLayout:
     """Where everything of :func:`~monorarp.app.display.draw.draw_frame` goes on an image of ``shape``
-    (H, W[, 3]); ``warning_s``: the per-object TTC cue (s) the label colours use."""
+    (H, W[, 3]); ``warning_s``: the per-object TTC cue (s) the label colours use; ``legend``: keep the
+    bottom-left corner for the legend."""
     h, w = int(shape[0]), int(shape[1])
     scale = font_scale(h)
     thick = thickness(scale)
@@ -119,7 +136,8 @@ def layout_frame(shape: tuple[int, ...], result: FrameResult, *, warning_s: floa
     tracks = sorted(result.tracks, key=lambda t: label_priority(t, result))
     boxes = [box_rect(t.box) for t in tracks]
     anchors = list(boxes)
-    obstacles = [header, *gauge] + [r for r in (banner, indicator) if r is not None]
+    legend_rect = legend_geometry(h, w, warning_s)[0] if legend else None
+    obstacles = [header, *gauge] + [r for r in (banner, indicator, legend_rect) if r is not None]
     if warning.active:
         for i, (tr, r) in enumerate(zip(tracks, boxes)):
             if tr.id != warning.track_id:
@@ -151,4 +169,4 @@ def layout_frame(shape: tuple[int, ...], result: FrameResult, *, warning_s: floa
             dy = max(a[1] - rect[3], rect[1] - a[3], 0)
             leader = max(dx, dy) > gap + 1
         labels.append(Label(tr.id, ls, label_colour(tr.id, result, warning_s), r, a, rect, leader))
-    return FrameLayout(header, gauge, banner, indicator, marker, highlight, tuple(labels))
+    return FrameLayout(header, gauge, banner, indicator, marker, highlight, tuple(labels), legend_rect)

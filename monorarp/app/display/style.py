@@ -30,6 +30,11 @@ def font_scale(h: int) -> float:
     return max(0.33, h / 1000)
 
 
+def legend_font_scale(h: int) -> float:
+    """Font scale of the legend's texts (smaller than the labels')."""
+    return max(0.3, 0.8 * font_scale(h))
+
+
 def gauge_font_scale(h: int) -> float:
     """Font scale of the risk gauge's texts."""
     return max(0.3, h / 900)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from monorarp.app.common_options import (add_camera_option, add_frames_option, add_no_video_option, add_out_option,
                                          add_threaded_option)
-from monorarp.app.options import add_pipeline_options
+from monorarp.app.options import REAL_FRAMES, add_pipeline_options
 
 
 def _speed(text: str) -> float:
@@ -37,7 +37,7 @@ def register_video(sub: argparse._SubParsersAction) -> None:
     p.add_argument("input", metavar="INPUT", help="video file, or webcam index (an integer)")
     add_camera_option(p, help="camera file (YAML or JSON: resolution, intrinsics, mounting height, pitch or "
                               "horizon_row)")
-    add_pipeline_options(p)
+    add_pipeline_options(p, defaults=REAL_FRAMES)
     p.add_argument("--speed", type=_speed, default=None, metavar="MPS",
                    help="known ego speed (m/s, e.g. GPS): used by the Monte Carlo risk when the ego-speed "
                         "estimator has no value, and reported as ego_speed then")

@@ -38,9 +38,9 @@ from typing import TextIO
 import cv2
 import numpy as np
 
-from monorarp.core.camera import CameraModel
+from monorarp.core.camera import CameraError, CameraModel
 from monorarp.app.common_options import check_frames
-from monorarp.app.options import default_pipeline_config
+from monorarp.app.options import REAL_FRAMES, default_pipeline_config
 from monorarp.detection.model_file import is_model_path
 from monorarp.core.errors import UserError
 from monorarp.app.io import JsonlWriter, atomic_output_dir, write_json_atomic
@@ -64,7 +64,7 @@ class DisplayError(UserError, RuntimeError):
 class VideoRunOptions:
     """The pipeline (default: what ``monorarp video`` runs without options) and the run loop's settings."""
 
-    pipeline: PipelineConfig = field(default_factory=default_pipeline_config)
+    pipeline: PipelineConfig = field(default_factory=lambda: default_pipeline_config(REAL_FRAMES))
     speed_mps: float | None = None      # known ego speed (GPS), m/s: the Monte Carlo risk's when it sets none
     threaded: bool = False
     max_frames: int | None = None
@@ -111,18 +111,36 @@ def _opencv_gui() -> str | None:
     return None
 
 
+#: Pixels each side of a resized video may differ from one common scale of the camera file's image
+#: (a resize rounds each side to whole, often even, pixels).
+RESIZE_TOL_PX = 1.0
+
+
+def is_resize(camera: CameraModel, width: int, height: int) -> bool:
+    """Whether a ``width`` x ``height`` image is ``camera``'s resized by one scale for both sides, each side
+    rounded to within :data:`RESIZE_TOL_PX` (1920x1080 -> 960x540 or 854x480: yes; 640x480 -> 960x540: no)."""
+    lo = max((width - RESIZE_TOL_PX) / camera.width, (height - RESIZE_TOL_PX) / camera.height)
+    hi = min((width + RESIZE_TOL_PX) / camera.width, (height + RESIZE_TOL_PX) / camera.height)
+    return lo <= hi
+
+
 def camera_for(camera: CameraModel, info: VideoInfo, log: TextIO | None | str = "stderr") -> tuple[CameraModel, bool]:
-    """``camera`` at the video's resolution (scaled when they differ, with a note on ``log``:
-    ``"stderr"`` = the current ``sys.stderr``, None = silent)."""
+    """``camera`` at the video's resolution: scaled when the video is a resize of the camera file's image (with a
+    note on ``log``: ``"stderr"`` = the current ``sys.stderr``, None = silent); :class:`CameraError` when the
+    shapes differ beyond a resize's rounding (:func:`is_resize`: a crop or a stretch, which scaling cannot fit)."""
     log = sys.stderr if log == "stderr" else log
     if (camera.width, camera.height) == (info.width, info.height):
         return camera, False
+    if not is_resize(camera, info.width, info.height):
+        raise CameraError(
+            f"{info.name}: the video is {info.width}x{info.height} (aspect {info.width / info.height:.3f}) but the "
+            f"camera file is {camera.width}x{camera.height} (aspect {camera.width / camera.height:.3f}): no resize "
+            "turns one into the other, so its intrinsics do not fit the video; make a camera file of the video's "
+            f"size, width {info.width} and height {info.height} with fx/fy/cx/cy or hfov_deg for that image "
+            "(docs/formats.md), then find its horizon_row with monorarp calibrate-horizon INPUT --camera FILE")
     if log is not None:
-        note = (f"note: the video is {info.width}x{info.height} but the camera file is "
-                f"{camera.width}x{camera.height}: intrinsics scaled to the video")
-        if abs(info.width / info.height - camera.width / camera.height) > 0.01 * camera.width / camera.height:
-            note += " (aspect ratios differ: if the video is a crop, the calibration does not fit it)"
-        print(note, file=log)
+        print(f"note: the video is {info.width}x{info.height} but the camera file is "
+              f"{camera.width}x{camera.height}: intrinsics scaled to the video", file=log)
     return camera.scaled(info.width, info.height), True
 
 
