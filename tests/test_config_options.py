@@ -11,6 +11,7 @@ import pytest
 from monorarp.pipeline import registry
 from monorarp.app.cli import build_parser, main
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
+from monorarp.state.config import REAL_FRAMES_STATE
 from monorarp.app.options import (CLI_EGO_SPEED, REAL_FRAMES, add_pipeline_options,
                                      default_pipeline_config, pipeline_config)
 from monorarp.core.errors import UserError
@@ -58,7 +59,9 @@ def test_video_options_round_trip():
     cfg = pipeline_config(parse("video", "in.mp4", "--camera", "c.yaml", "--tracker", "kcf", "--risk",
                                 "monte_carlo", "--horizon", "online", "--ego-speed", "None"))
     # as the video command built it before, plus the state estimator's velocity written out (its default)
-    assert cfg == PipelineConfig(detector=C("yolox"), tracker=C("kcf"), state=C("geometric", velocity="kalman"),
+    # and the real-frame state settings (the size prior)
+    assert cfg == PipelineConfig(detector=C("yolox"), tracker=C("kcf"),
+                                 state=C("geometric", **REAL_FRAMES_STATE, velocity="kalman"),
                                  risk=C("monte_carlo"), ego_speed=None, horizon=C("online"))
 
 
@@ -72,7 +75,9 @@ def test_defaults_identical_across_commands():
     kitti = pipeline_config(parse("eval", "kitti", "d", "--out", "x"))
     assert run == default_pipeline_config()
     assert video == default_pipeline_config(REAL_FRAMES) == VideoRunOptions().pipeline
-    assert video == run.model_copy(update={"detector": C(REAL_WORLD_DETECTOR)})   # only the detector differs
+    # only the detector and the state's real-frame settings differ
+    assert video == run.model_copy(update={"detector": C(REAL_WORLD_DETECTOR),
+                                           "state": C("geometric", **REAL_FRAMES_STATE, velocity="kalman")})
     assert run.ego_speed == C(CLI_EGO_SPEED) and PipelineConfig().ego_speed is None
     for cfg in (run, video, bench, card, kitti):
         assert cfg.detector.name == (REAL_WORLD_DETECTOR if cfg is video else PipelineConfig().detector.name)

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 onnx = pytest.importorskip("onnx")
-from onnx import TensorProto, helper  # noqa: E402
 
 from monorarp.pipeline.detectors import load_detector
 from monorarp.detection.centernet import CenterNetDetector
@@ -17,26 +16,11 @@ from monorarp.detection.yolo import YoloDetector  # noqa: E402
 from monorarp.detection.centernet import DEFAULT_MODEL  # noqa: E402
 from monorarp.core.errors import UserError  # noqa: E402
 
+from onnx_models import constant_model  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def constant_model(path: Path, input_shape, outputs: dict[str, np.ndarray], input_name: str = "images") -> Path:
-    """An ONNX model whose outputs are fixed tensors (plus 0 * mean(input), so the input is used)."""
-    nodes = [helper.make_node("ReduceMean", [input_name], ["m"], keepdims=0),
-             helper.make_node("Mul", ["m", "zero"], ["z"])]
-    inits = [helper.make_tensor("zero", TensorProto.FLOAT, [], [0.0])]
-    outs = []
-    for name, arr in outputs.items():
-        inits.append(helper.make_tensor(f"{name}_c", TensorProto.FLOAT, arr.shape, arr.astype(np.float32).ravel()))
-        nodes.append(helper.make_node("Add", [f"{name}_c", "z"], [name]))
-        outs.append(helper.make_tensor_value_info(name, TensorProto.FLOAT, list(arr.shape)))
-    graph = helper.make_graph(nodes, "fixed", [helper.make_tensor_value_info(input_name, TensorProto.FLOAT, list(input_shape))],
-                              outs, initializer=inits)
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
-    model.ir_version = 8
-    onnx.checker.check_model(model)
-    onnx.save(model, str(path))
-    return path
 
 
 # ------------------------------------------------------------------- YOLO

@@ -110,7 +110,7 @@ def test_missing_file(tmp_path, capsys):
     rc, err = _run(capsys, ["render", str(path), "--out", str(out)])
     assert rc == 2
     assert len(err.strip().splitlines()) == 1
-    assert str(path) in err and "No such file" in err
+    assert str(path) in err and "no such file" in err
     assert not out.exists()
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 onnx = pytest.importorskip("onnx")
-from onnx import TensorProto, helper  # noqa: E402
+
 
 from monorarp.core.errors import UserError  # noqa: E402
 from monorarp.detection.letterbox import Letterbox  # noqa: E402
@@ -19,24 +19,11 @@ from monorarp.detection.yolox import (COCO_VEHICLES, DEFAULT_MODEL, YoloxDetecto
                                       nms)
 from monorarp.pipeline.detectors import load_detector  # noqa: E402
 
+from onnx_models import constant_model  # noqa: E402
+
 SHA256 = "695e750a5d5754bb5a8d5325643b59282191a7e7a564e435a415fd3c578eab14"
 
 
-def fixed_output_model(path: Path, input_shape, outputs: dict[str, np.ndarray]) -> Path:
-    """An ONNX model with input ``images`` whose outputs are fixed tensors (plus 0 * mean(input))."""
-    nodes = [helper.make_node("ReduceMean", ["images"], ["m"], keepdims=0), helper.make_node("Mul", ["m", "zero"], ["z"])]
-    inits = [helper.make_tensor("zero", TensorProto.FLOAT, [], [0.0])]
-    outs = []
-    for name, arr in outputs.items():
-        inits.append(helper.make_tensor(f"{name}_c", TensorProto.FLOAT, arr.shape, arr.astype(np.float32).ravel()))
-        nodes.append(helper.make_node("Add", [f"{name}_c", "z"], [name]))
-        outs.append(helper.make_tensor_value_info(name, TensorProto.FLOAT, list(arr.shape)))
-    graph = helper.make_graph(nodes, "fixed", [helper.make_tensor_value_info("images", TensorProto.FLOAT,
-                                                                             list(input_shape))], outs, initializer=inits)
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
-    model.ir_version = 8
-    onnx.save(model, str(path))
-    return path
 
 
 def cell_row(stride: int, col: int, row: int, size: int = 416) -> int:
@@ -74,7 +61,7 @@ def test_decode_hand_case_in_canvas_pixels():
 
 
 def test_detector_through_the_top_left_letterbox(tmp_path):
-    path = fixed_output_model(tmp_path / "yolox.onnx", (1, 3, 416, 416), {"output": synthetic_output()})
+    path = constant_model(tmp_path / "yolox.onnx", (1, 3, 416, 416), {"output": synthetic_output()})
     det = YoloxDetector(path, foveate=False)
     out = det.detect(np.zeros((624, 832, 3), np.uint8))     # scale 0.5 into 416x312, top-left, no padding above
     # source edges = canvas edges / 0.5; pixel-centre convention: minus 0.5
@@ -120,7 +107,7 @@ def test_class_mapping_keeps_vehicles_only():
 
 
 def test_a_layout_that_matches_nothing_is_refused_in_one_line(tmp_path):
-    wrong_n = fixed_output_model(tmp_path / "v5.onnx", (1, 3, 416, 416), {"output": np.zeros((1, 10647, 85))})
+    wrong_n = constant_model(tmp_path / "v5.onnx", (1, 3, 416, 416), {"output": np.zeros((1, 10647, 85))})
     for build in (lambda: load_detector(str(wrong_n)), lambda: YoloxDetector(wrong_n)):
         with pytest.raises(UserError) as e:
             build()
@@ -131,7 +118,7 @@ def test_a_layout_that_matches_nothing_is_refused_in_one_line(tmp_path):
 def test_the_cli_refuses_a_bad_layout_with_exit_2_and_writes_nothing(tmp_path, capsys):
     from monorarp.app.cli import main
 
-    bad = fixed_output_model(tmp_path / "bad.onnx", (1, 3, 416, 416), {"output": np.zeros((1, 3549, 7))})
+    bad = constant_model(tmp_path / "bad.onnx", (1, 3, 416, 416), {"output": np.zeros((1, 3549, 7))})
     clip = tmp_path / "clip.mp4"
     writer = cv2.VideoWriter(str(clip), cv2.VideoWriter_fourcc(*"mp4v"), 15.0, (320, 180))
     for _ in range(3):

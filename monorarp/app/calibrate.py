@@ -5,27 +5,14 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from monorarp.app.common_options import add_frames_option
+from monorarp.app.common_options import add_frames_option, metres_in
 from monorarp.core.errors import UserError
 
 if TYPE_CHECKING:
     from monorarp.horizon.calibration import CalibrationEstimate
-
-
-def _metres(lo: float, hi: float) -> Callable[[str], float]:
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected metres, got {text[:40]!r}") from None
-        if not (math.isfinite(v) and lo <= v <= hi):
-            raise argparse.ArgumentTypeError(f"must be {lo:g}..{hi:g} m, got {text[:40]}")
-        return v
-    return parse
 
 
 def _out_file(text: str) -> Path:
@@ -47,11 +34,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="camera file to write (default: <video name>.camera.yaml here)")
     add_frames_option(p, default=300, help="frames to use from the start (default 300)")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--lane-width", type=_metres(2.0, 6.0), default=US_LANE_WIDTH_M, metavar="M",
+    g.add_argument("--lane-width", type=metres_in(2.0, 6.0), default=US_LANE_WIDTH_M, metavar="M",
                    help=f"lane width, gives the height (default {US_LANE_WIDTH_M} m, US)")
-    g.add_argument("--height", type=_metres(0.2, 5.0), default=None, metavar="M",
+    g.add_argument("--height", type=metres_in(0.2, 5.0), default=None, metavar="M",
                    help="known camera height above the road (the lane width is then measured)")
-    p.add_argument("--stripe-period", type=_metres(2.0, 50.0), default=US_STRIPE_PERIOD_M, metavar="M",
+    p.add_argument("--stripe-period", type=metres_in(2.0, 50.0), default=US_STRIPE_PERIOD_M, metavar="M",
                    help=f"dashed markings' period, stripe + gap (default {US_STRIPE_PERIOD_M} m, US)")
     p.set_defaults(func=calibrate_command)
 

@@ -19,8 +19,10 @@ This lives in :mod:`monorarp.app`, not the harness, because ``monorarp video`` a
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from monorarp.core.errors import UserError
 
@@ -46,17 +48,25 @@ def positive_int(text: str) -> int:
 
 def int_in(lo: int, hi: int) -> Callable[[str], int]:
     """A type for an integer in ``lo..hi`` (e.g. ``--trials``)."""
+    return _number_in(int, lo, hi, "", f"int_in_{lo}_{hi}")
 
-    def parse(text: str) -> int:
+
+def metres_in(lo: float, hi: float) -> Callable[[str], float]:
+    """A type for a finite length in ``lo..hi`` metres (e.g. ``--lane-width``)."""
+    return _number_in(float, lo, hi, " m", f"metres_in_{lo:g}_{hi:g}")
+
+
+def _number_in(kind: type, lo: float, hi: float, unit: str, name: str) -> Callable[[str], Any]:
+    def parse(text: str):
         try:
-            n = int(text)
+            n = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"must be {lo}..{hi}, got {_shown(text)}") from None
-        if not lo <= n <= hi:
-            raise argparse.ArgumentTypeError(f"must be {lo}..{hi}, got {n}")
+            raise argparse.ArgumentTypeError(f"must be {lo:g}..{hi:g}{unit}, got {_shown(text)}") from None
+        if not (math.isfinite(n) and lo <= n <= hi):
+            raise argparse.ArgumentTypeError(f"must be {lo:g}..{hi:g}{unit}, got {n}")
         return n
 
-    parse.__name__ = f"int_in_{lo}_{hi}"
+    parse.__name__ = name
     return parse
 
 

@@ -11,9 +11,9 @@ command-line defaults stated here because they differ from a bare config:
 * ``--horizon calibrated`` (the default) means no horizon stage;
 * ``--detector`` defaults to :data:`~monorarp.pipeline.config.REAL_WORLD_DETECTOR` where the frames are real
   (``video``: :data:`REAL_FRAMES`), to :class:`PipelineConfig`'s (``centernet``) where they are rendered;
-* ``--size-prior`` (the state estimator's) is ``on`` where the frames are real (:data:`REAL_FRAMES`: the
-  settings of :data:`~monorarp.state.config.REAL_FRAMES_STATE` written into the config); elsewhere, left out,
-  the config is as given.
+* where the frames are real (:data:`REAL_FRAMES`) the state estimator gets
+  :data:`~monorarp.state.config.REAL_FRAMES_STATE` (the size prior on, the box bottom at the rear face);
+  ``--size-prior on|off`` sets ``size_prior`` alone; left out elsewhere, the config is as given.
 
 The TTC thresholds (the warning stage's alert, the paper's per-object cue) are defined once, in
 :mod:`monorarp.warning.thresholds`. The other options several commands share (``--frames``, ``--out``,
@@ -97,7 +97,8 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
         p.add_argument("--velocity", choices=VELOCITIES, default=DEFAULT_VELOCITY,
                        help=f"relative velocity of the state estimator (default: {DEFAULT_VELOCITY})")
         size = defaults.get("size_prior")
-        p.add_argument("--size-prior", choices=("on", "off"), default=size,
+        p.set_defaults(_state_defaults=REAL_FRAMES_STATE if size == "on" else {})   # read by pipeline_config
+        p.add_argument("--size-prior", choices=("on", "off"), default=None,
                        help="fuse each vehicle's distance from its kind's height and width with the ground plane's "
                             f"(default: {size or 'the config, off'})")
     if "ego_speed" in stages:
@@ -160,10 +161,10 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
         if "detector" in stages and getattr(args, "weak_detections", None) is not None:
             check_weak_detections(update["detector"], [args.tracker], "--weak-detections")
     if "state" in stages:
-        kw = {**cfg.state.kwargs, "velocity": args.velocity}
+        kw = {**cfg.state.kwargs, **getattr(args, "_state_defaults", {}), "velocity": args.velocity}
         size = getattr(args, "size_prior", None)
         if size is not None:
-            kw.update(REAL_FRAMES_STATE if size == "on" else {"size_prior": False})
+            kw["size_prior"] = size == "on"
         update["state"] = ComponentConfig(name=cfg.state.name, kwargs=kw)
     if "risk" in stages:
         update["risk"] = _component("risk", "--risk", args.risk, check=check)

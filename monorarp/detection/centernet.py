@@ -18,7 +18,7 @@ import numpy as np
 from monorarp.core.boxes import iou
 from monorarp.core.camera import CameraModel
 from monorarp.detection.bottom_edge import refine_bottom as refine_bottom_edges
-from monorarp.detection.fovea import Fovea, merge
+from monorarp.detection.fovea import Fovea, FoveaPass, merge
 from monorarp.detection.letterbox import Letterbox, to_blob
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
 from monorarp.detection.second_pass import helper_pool
@@ -107,7 +107,7 @@ def decode(heatmap: np.ndarray, ltrb: np.ndarray, stride: int, score_threshold: 
     return merged, sc.astype(np.float64)
 
 
-class CenterNetDetector:
+class CenterNetDetector(FoveaPass):
     """The project's CenterNet-style vehicle detector (onnxruntime, CPU).
 
     ``model_path``: defaults to the committed ``monorarp/models/centernet_vehicle.onnx``;
@@ -199,26 +199,9 @@ class CenterNetDetector:
         hm, lt = self.session.run(list(OUTPUT_NAMES), {self.input_name: blob})
         return hm[0, 0], lt[0], letterbox
 
-    def fovea(self, width: int, height: int) -> tuple[Fovea | None, Letterbox | None]:
-        """The second-pass crop for a ``width`` x ``height`` image (None: no second pass) and its letterbox.
-
-        Centred on the camera's principal column, around its horizon row (the camera is scaled
-        to the image's size); without a camera, the image centre.
-        """
-        if self._fovea is not None and self._fovea[0] == (width, height):
-            return self._fovea[1], self._fovea[2]
-        fov, lb = None, None
-        if self.foveate:
-            cam = self.camera
-            if cam is not None and (cam.width, cam.height) != (width, height):
-                cam = cam.scaled(width, height)
-            col = cam.cx if cam is not None else (width - 1) / 2
-            row = cam.horizon_row if cam is not None else (height - 1) / 2
-            fov = Fovea.place(width, height, self.input_w, self.input_h, col, row, self.fovea_zoom, self.fovea_below)
-            if fov is not None:
-                lb = Letterbox.fit(fov.w, fov.h, self.input_w, self.input_h)
-        self._fovea = ((width, height), fov, lb)
-        return fov, lb
+    def fovea_letterbox(self, w: int, h: int) -> Letterbox:
+        """How the net sees a ``w`` x ``h`` fovea crop."""
+        return Letterbox.fit(w, h, self.input_w, self.input_h)
 
     def detect_arrays(self, image: np.ndarray, threshold: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """BGR uint8 image -> (boxes (K, 4) source px, unclipped; scores (K,)), both passes merged.

@@ -14,10 +14,15 @@ integers, an image of width W spans [-0.5, W - 0.5]).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from monorarp.core.boxes import iou_matrix
+
+if TYPE_CHECKING:
+    from monorarp.core.camera import CameraModel
+    from monorarp.detection.letterbox import Letterbox
 
 
 @dataclass(frozen=True)
@@ -55,6 +60,18 @@ class Fovea:
         x0 = min(max(x0, 0), src_w - w)
         y0 = min(max(y0, 0), src_h - h)
         return cls(x0, y0, w, h, src_w, src_h)
+
+    @classmethod
+    def for_camera(cls, camera: "CameraModel | None", src_w: int, src_h: int, net_w: int, net_h: int,
+                   zoom: float = 2.0, below: float = 0.25) -> "Fovea | None":
+        """:meth:`place` centred on the camera's principal column and around its horizon row (the camera
+        scaled to the image's size); without a camera, on the image centre."""
+        cam = camera
+        if cam is not None and (cam.width, cam.height) != (src_w, src_h):
+            cam = cam.scaled(src_w, src_h)
+        col = cam.cx if cam is not None else (src_w - 1) / 2
+        row = cam.horizon_row if cam is not None else (src_h - 1) / 2
+        return cls.place(src_w, src_h, net_w, net_h, col, row, zoom, below)
 
     def cut(self, image: np.ndarray) -> np.ndarray:
         return image[self.y0:self.y0 + self.h, self.x0:self.x0 + self.w]
@@ -137,3 +154,27 @@ def merge(full_boxes: np.ndarray, full_scores: np.ndarray, fov_boxes: np.ndarray
     scores = np.concatenate([fs[~drop_f], out_s[out_c]])
     order = np.argsort(-scores, kind="stable")
     return boxes[order], scores[order]
+
+
+class FoveaPass:
+    """The second pass's crop of a detector, cached per image size: :meth:`Fovea.for_camera` when
+    ``foveate`` (None otherwise) and the letterbox the detector's net sees it through
+    (:meth:`fovea_letterbox`). Needs ``camera``, ``foveate``, ``input_w``, ``input_h``, ``fovea_zoom``,
+    ``fovea_below`` and ``_fovea`` (None until the first call) on the detector."""
+
+    def fovea_letterbox(self, w: int, h: int) -> "Letterbox":
+        raise NotImplementedError
+
+    def fovea(self, width: int, height: int) -> "tuple[Fovea | None, Letterbox | None]":
+        """The second-pass crop for a ``width`` x ``height`` image (None: no second pass) and its letterbox.
+
+        Centred on the camera's principal column, around its horizon row (the camera is scaled
+        to the image's size); without a camera, the image centre.
+        """
+        if self._fovea is not None and self._fovea[0] == (width, height):
+            return self._fovea[1], self._fovea[2]
+        fov = (Fovea.for_camera(self.camera, width, height, self.input_w, self.input_h, self.fovea_zoom,
+                                self.fovea_below) if self.foveate else None)
+        lb = None if fov is None else self.fovea_letterbox(fov.w, fov.h)
+        self._fovea = ((width, height), fov, lb)
+        return fov, lb

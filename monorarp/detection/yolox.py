@@ -24,7 +24,7 @@ import numpy as np
 
 from monorarp.core.camera import CameraModel
 from monorarp.core.types import Detection
-from monorarp.detection.fovea import Fovea, merge
+from monorarp.detection.fovea import Fovea, FoveaPass, merge
 from monorarp.detection.letterbox import Letterbox
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
 from monorarp.detection.second_pass import helper_pool
@@ -104,7 +104,7 @@ def to_blob(canvas_bgr: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(canvas_bgr.transpose(2, 0, 1)[None], dtype=np.float32)
 
 
-class YoloxDetector:
+class YoloxDetector(FoveaPass):
     """Vehicles from COCO-trained YOLOX-Nano (``yolox``; the default where the frames are real).
 
     ``model_path``: default the shipped ``monorarp/models/yolox_nano_coco.onnx`` (any YOLOX export with
@@ -170,22 +170,9 @@ class YoloxDetector:
         # edge convention (canvas spans [0, W]) -> pixel centres, then undo the letterbox
         return letterbox.to_src(boxes[keep] - 0.5, clip=False), scores[keep], cls[keep]
 
-    def fovea(self, width: int, height: int) -> tuple[Fovea | None, Letterbox | None]:
-        """The second pass's crop of a ``width`` x ``height`` image and its letterbox (None: no second pass)."""
-        if self._fovea is not None and self._fovea[0] == (width, height):
-            return self._fovea[1], self._fovea[2]
-        fov, lb = None, None
-        if self.foveate:
-            cam = self.camera
-            if cam is not None and (cam.width, cam.height) != (width, height):
-                cam = cam.scaled(width, height)
-            col = cam.cx if cam is not None else (width - 1) / 2
-            row = cam.horizon_row if cam is not None else (height - 1) / 2
-            fov = Fovea.place(width, height, self.input_w, self.input_h, col, row, self.fovea_zoom, self.fovea_below)
-            if fov is not None:
-                lb = Letterbox.top_left(fov.w, fov.h, self.input_w, self.input_h)
-        self._fovea = ((width, height), fov, lb)
-        return fov, lb
+    def fovea_letterbox(self, w: int, h: int) -> Letterbox:
+        """How the net sees a ``w`` x ``h`` fovea crop."""
+        return Letterbox.top_left(w, h, self.input_w, self.input_h)
 
     def detect_arrays(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """BGR uint8 image -> (boxes (K, 4) source px, unclipped; scores (K,); COCO classes (K,)), both passes merged."""

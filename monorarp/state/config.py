@@ -149,14 +149,21 @@ class StateConfig(BaseModel):
         "fuse each box's distance from its kind's height and width with the ground plane's (inverse variance)"))
     size_priors: dict[str, tuple[float, float, float, float, float, float]] | None = Field(None, description=(
         "kind -> (height, its std, width, its std, length, its std) m; None: monorarp.state.size_prior.SIZE_PRIORS"))
-    size_prior_width: bool = Field(True, description="the size prior also uses the box width (whole boxes only)")
+    size_prior_width: bool = Field(False, description=(
+        "the size prior also uses the box width (whole boxes only; on KITTI it reads 13 % off and hurts the fusion)"))
     size_prior_edge_std_px: float = Field(1.0, gt=0, description=(
         "one-sigma (px) of each box edge in the size prior's distances"))
     ground_pitch_std: float = Field(0.01, ge=0, description=(
         "one-sigma (rad, or rise/run) of the camera's pitch and the road's grade under the vehicle, in the "
         "ground plane's one-sigma the size prior is fused with"))
-    size_prior_hidden_share: float = Field(0.1, ge=0, lt=1, description=(
-        "a box over more than this share of its area behind a nearer vehicle's box takes no size prior"))
+    size_prior_ground_fit: bool = Field(True, description=(
+        "the size prior's ground plane is fitted per frame to the other vehicles' sizes and bottom rows"))
+    camera_height_std_m: float = Field(0.1, gt=0, description=(
+        "prior one-sigma (m) of the camera's height over the ground under the vehicles, in that fit"))
+    ground_roughness_m: float = Field(0.15, ge=0, description=(
+        "one-sigma (m) of the ground under each vehicle about the fitted plane"))
+    size_prior_hidden_share: float | None = Field(None, ge=0, lt=1, description=(
+        "a box over more than this share of its area behind a nearer vehicle's box takes no size prior; None: any"))
 
     # Looming: expansion rate of the box width (monorarp.state.expansion)
     expansion_process_std: float = Field(1.0, gt=0, description=(
@@ -182,8 +189,9 @@ class StateConfig(BaseModel):
         "the scale's one-sigma (px of box width) in that fusion; None: registration_pixel_std"))
 
 
-#: The state settings of the commands whose frames are real (``video``, ``eval kitti`` on real data): the size prior.
-REAL_FRAMES_STATE: dict[str, Any] = {"size_prior": True}
+#: The state settings of the commands whose frames are real (``video``, ``eval kitti`` on real data): the size prior,
+#: and the box bottom taken at the rear face (a real box's vertical extent lies there: docs/state_estimation.md).
+REAL_FRAMES_STATE: dict[str, Any] = {"size_prior": True, "contact_offset_m": 0.0}
 
 
 def state_config(base: StateConfig | None = None, overrides: Mapping[str, Any] | None = None) -> StateConfig:

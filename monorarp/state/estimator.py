@@ -30,7 +30,7 @@ from monorarp.state.measurement import (NearEdgeOffsets, border_cut_boxes, borde
                                         horizon_gain, near_limit_m, plausible_boxes)
 from monorarp.state.noise import MeasurementNoise, ProcessNoise, bias_variance, prior_variance
 from monorarp.state.scale_change import LoomingRegistration, RateWindow, lateral_displacement
-from monorarp.state.size_prior import SIZE_PRIORS, fuse, height_distance, priors_of, width_distance
+from monorarp.state.size_prior import SIZE_PRIORS, fuse, ground_fit, height_distance, priors_of, width_distance
 
 
 class StateEstimator:
@@ -145,10 +145,11 @@ class StateEstimator:
 
     def size_fused(self, labels: Sequence[str], boxes: np.ndarray, d_y: np.ndarray,
                    horizon_std_px: float) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-        """The ground plane's ``d_y`` (M,) of ``boxes`` fused with their size prior's (:mod:`monorarp.state.size_prior`):
-        ``(fused d_y, its one-sigma, the parts)``; the parts (``ground``, ``height``, ``width``, each with a ``_std``)
-        are each reading and its one-sigma (m; NaN where it takes no part). A box whose ground distance is NaN, or
-        whose kind has no prior, keeps the ground plane's reading (one-sigma NaN where there is no prior)."""
+        """The ground plane's ``d_y`` (M,) of ``boxes`` fused with their size prior's
+        (:mod:`monorarp.state.size_prior`): ``(fused d_y, its one-sigma, the parts)``; the parts (``ground``,
+        ``height``, ``width``, each with a ``_std``) are each reading and its one-sigma (m; NaN where it takes no
+        part), ``ground`` on the frame's fitted ground plane with ``size_prior_ground_fit``. A box whose ground
+        distance is NaN, or whose kind has no prior, keeps the flat ground plane's ``d_y`` (one-sigma NaN)."""
         c = self.config
         cam, tol = self.camera, self.border_tol_px
         prior = priors_of(labels, SIZE_PRIORS if c.size_priors is None else c.size_priors)
@@ -159,19 +160,45 @@ class StateEstimator:
                              c.contact_offset_m)
         if self._ground_std is not None:
             g_std = np.hypot(g_std, self._ground_std)
-        hidden = occluded(boxes, c.size_prior_hidden_share) if len(boxes) > 1 else np.zeros(len(boxes), bool)
+        hidden = occluded(boxes, c.size_prior_hidden_share) if c.size_prior_hidden_share is not None \
+            else np.zeros(len(boxes), bool)
         top_cut = boxes[:, 1] <= -0.5 + (tol or 0.0)
         h, h_std = height_distance(cam, boxes, prior[:, 0], prior[:, 1], c.size_prior_edge_std_px, c.contact_offset_m)
-        h = np.where(hidden | top_cut | flags[:, 2], np.nan, h)
+        # a box cut by a side border may not reach the roof (a bonnet or boot is lower): no height there
+        h = np.where(hidden | top_cut | flags[:, 2] | side_cut, np.nan, h)
+        ground = d_y
+        if c.size_prior_ground_fit and self._profile is None:
+            ground, g_std = self._fitted_ground(boxes, d_y, h, h_std)
         w = w_std = np.full(len(d_y), np.nan)
         if c.size_prior_width:
             w, w_std = width_distance(cam, boxes, prior[:, 2], prior[:, 3], prior[:, 4], prior[:, 5],
                                       c.size_prior_edge_std_px)
             w = np.where(hidden | side_cut, np.nan, w)
-        fused, std = fuse([d_y, h, w], [g_std, h_std, w_std])
+        fused, std = fuse([ground, h, w], [g_std, h_std, w_std])
         has = np.isfinite(d_y) & np.isfinite(prior[:, 0])
-        parts = {"ground": d_y, "ground_std": g_std, "height": h, "height_std": h_std, "width": w, "width_std": w_std}
+        parts = {"ground": ground, "ground_std": g_std, "height": h, "height_std": h_std, "width": w, "width_std": w_std}
         return np.where(has, fused, d_y), np.where(has, std, np.nan), parts
+
+    def _fitted_ground(self, boxes: np.ndarray, d_y: np.ndarray, h: np.ndarray, h_std: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """Each box's ground distance (m) and its one-sigma on the frame's ground plane fitted to the other
+        vehicles' size distances ``h`` +- ``h_std`` (:func:`monorarp.state.size_prior.ground_fit`); NaN where
+        ``d_y`` is (no ground reading) or the box's bottom is not below the fitted horizon."""
+        c, cam = self.config, self.camera
+        off, edge = c.contact_offset_m, c.edge_std_px / cam.fy          # rad per px of bottom edge
+        v = (boxes[:, 3] - (cam.cy - cam.fy * math.tan(cam.pitch_rad))) / cam.fy
+        with np.errstate(invalid="ignore", divide="ignore"):
+            x = 1.0 / (h + off)
+            v_std = np.sqrt((cam.height_m * h_std * x * x) ** 2 + edge ** 2 + (c.ground_roughness_m * x) ** 2)
+            theta, cov = ground_fit(v, np.where(x > 0, x, np.nan), v_std, cam.height_m, c.camera_height_std_m,
+                                    c.ground_pitch_std)
+            den = v - theta[:, 1]
+            y = np.where(den > 0, theta[:, 0] / den, np.nan)
+            jac = np.stack([1.0 / den, theta[:, 0] / den ** 2], axis=1)
+            var = np.einsum("mi,mij,mj->m", jac, cov, jac) + (jac[:, 1] * edge) ** 2 \
+                + (c.ground_roughness_m / den) ** 2 + c.contact_offset_std_m ** 2
+        good = np.isfinite(d_y) & np.isfinite(y)
+        return np.where(good, y - off, np.nan), np.where(good, np.sqrt(var), np.nan)
 
     def _noise(self) -> MeasurementNoise:
         """This frame's measurement noise model (its camera, its horizon's white noise)."""

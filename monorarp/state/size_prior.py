@@ -88,3 +88,29 @@ def fuse(values: Sequence[np.ndarray], stds: Sequence[np.ndarray]) -> tuple[np.n
         mean = np.where(total > 0, (w * np.where(good, v, 0.0)).sum(axis=0) / total, np.nan)
         std = np.where(total > 0, 1.0 / np.sqrt(total), np.nan)
     return mean, std
+
+
+def ground_fit(v: np.ndarray, x: np.ndarray, v_std: np.ndarray, height_m: float, height_std_m: float,
+               pitch_std: float) -> tuple[np.ndarray, np.ndarray]:
+    """The frame's ground plane from its vehicles, left one out for each: ``(theta, cov)`` of shapes (M, 2) and
+    (M, 2, 2), ``theta[i] = (h, p)`` fitted to every vehicle but ``i``.
+
+    Vehicle ``j`` whose bottom edge lies ``v_j`` rad below the calibrated horizon (``(y2 - r0) / fy``) and whose
+    contact line is ``1 / x_j`` m ahead (from its size) says ``v_j = h x_j + p``: ``h`` the camera's height over
+    the ground under the vehicles (m), ``p`` the pitch of that ground against the calibration (rad, + the road
+    falls away / the camera pitched up). Weighted least squares with one-sigmas ``v_std`` (rad; NaN: the vehicle
+    takes no part) and the prior ``h = height_m +- height_std_m``, ``p = 0 +- pitch_std``: with no other vehicle
+    the answer is the prior, the flat ground of the calibration."""
+    ok = np.isfinite(v) & np.isfinite(x) & np.isfinite(v_std) & (v_std > 0)
+    w = np.where(ok, 1.0 / np.where(ok, v_std, 1.0) ** 2, 0.0)
+    a = np.stack([np.where(ok, x, 0.0), np.where(ok, 1.0, 0.0)], axis=1)       # (M, 2) design rows
+    vv = np.where(ok, v, 0.0)
+    prior_info = np.diag([1.0 / height_std_m ** 2, 1.0 / max(pitch_std, 1e-9) ** 2])
+    prior_vec = prior_info @ np.array([height_m, 0.0])
+    info_j = w[:, None, None] * a[:, :, None] * a[:, None, :]                   # (M, 2, 2)
+    vec_j = (w * vv)[:, None] * a                                              # (M, 2)
+    info = prior_info + info_j.sum(axis=0) - info_j                            # leave-one-out
+    vec = prior_vec + vec_j.sum(axis=0) - vec_j
+    cov = np.linalg.inv(info)
+    return np.einsum("mij,mj->mi", cov, vec), cov
+
