@@ -22,8 +22,9 @@ def _result(ttc: dict, risk: float, kind: str = "inverse_ttc") -> FrameResult:
 
 def test_ttc_colour_thresholds():
     assert ttc_colour(None) == GREEN and ttc_colour(float("nan")) == GREEN
-    assert ttc_colour(1.99) == RED and ttc_colour(2.0) == ORANGE and ttc_colour(3.99) == ORANGE
-    assert ttc_colour(4.0) == YELLOW and ttc_colour(0.5, warning_s=0.4) == ORANGE
+    assert ttc_colour(1.99) == ORANGE and ttc_colour(2.0) == YELLOW and ttc_colour(3.99) == YELLOW
+    assert ttc_colour(4.0) == GREEN and ttc_colour(0.5, warning_s=0.4) == YELLOW
+    assert all(ttc_colour(t) != RED for t in (0.1, 1.0, 1.99, 3.0, 9.0, None))   # red: the warned object only
 
 
 def test_boxes_coloured_by_ttc_and_input_untouched():
@@ -31,9 +32,10 @@ def test_boxes_coloured_by_ttc_and_input_untouched():
     before = img.copy()
     out = draw_frame(img, _result({1: 1.5, 2: None}, 1 / 1.5))
     assert np.array_equal(img, before) and out.shape == img.shape
-    # Bottom edges of the boxes (row 259), away from the labels: track 1 red, track 2 green.
-    assert tuple(out[259, 140]) == RED
+    # Bottom edges of the boxes (row 259), away from the labels: track 1 orange (the cue), track 2 green.
+    assert tuple(out[259, 140]) == ORANGE
     assert tuple(out[259, 440]) == GREEN
+    assert not np.all(out == np.array(RED, np.uint8), axis=2).any()      # no warning: no red anywhere
 
 
 def _gauge_fill(out: np.ndarray, colour) -> int:
@@ -43,14 +45,16 @@ def _gauge_fill(out: np.ndarray, colour) -> int:
 
 def test_gauge_fill_scales_with_risk():
     img = np.full((360, 640, 3), 90, np.uint8)
-    half = _gauge_fill(draw_frame(img, _result({1: 1.5}, 0.4)), ORANGE)     # 1/risk = 2.5 s -> orange
-    full = _gauge_fill(draw_frame(img, _result({1: 0.5}, 2.0)), RED)        # clipped at full scale
+    half = _gauge_fill(draw_frame(img, _result({1: 1.5}, 0.4)), YELLOW)     # 1/risk = 2.5 s -> yellow
+    full = _gauge_fill(draw_frame(img, _result({1: 0.5}, 2.0)), ORANGE)     # clipped at full scale
     bar = int(360 * 0.85) - int(360 * 0.2)
     assert abs(half - 0.4 * bar) <= 3 and abs(full - bar) <= 3
     none = draw_frame(img, _result({}, 0.0))
-    assert _gauge_fill(none, RED) <= 1 and _gauge_fill(none, GREEN) == 0     # only the 1/warning_s tick
-    prob = _gauge_fill(draw_frame(img, _result({}, 0.8, "probability")), RED)
+    assert _gauge_fill(none, ORANGE) <= 1 and _gauge_fill(none, GREEN) == 0  # only the 1/warning_s tick
+    prob = _gauge_fill(draw_frame(img, _result({}, 0.8, "probability")), ORANGE)
     assert abs(prob - 0.8 * bar) <= 3
+    warned = replace(_result({1: 0.5}, 2.0), warning=WarningState(active=True, track_id=1))
+    assert abs(_gauge_fill(draw_frame(img, warned), RED) - bar) <= 5         # red only while warning
 
 
 # --- Warning state and label layout -------------------------------------------------------------
@@ -205,12 +209,12 @@ def test_the_warned_object_shows_the_warning_stages_ttc_the_others_the_cue():
     labels = {lab.track_id: lab for lab in layout.labels}
     assert labels[7].lines[0] == "#7 FCW TTC 1.1s" and labels[7].colour == RED       # the banner's number, red
     assert labels[100].lines[0].endswith("TTC 1.3s") and "FCW" not in labels[100].lines[0]
-    assert labels[100].colour == RED                                                  # the cue: 1.3 s < 2 s
+    assert labels[100].colour == ORANGE                                               # the cue: 1.3 s < 2 s
     held = layout_frame((360, 640, 3), replace(res, warning=replace(res.warning, ttc=None)))
     assert next(lab for lab in held.labels if lab.track_id == 7).lines[0] == "#7 FCW"   # hold time: no TTC
     idle = layout_frame((360, 640, 3), replace(res, warning=WarningState()))
     seven = next(lab for lab in idle.labels if lab.track_id == 7)
-    assert seven.lines[0] == "#7 TTC 2.6s" and seven.colour == ORANGE                   # no alert: the cue
+    assert seven.lines[0] == "#7 TTC 2.6s" and seven.colour == YELLOW                   # no alert: the cue
 
 
 def test_the_layout_modules_do_not_draw():

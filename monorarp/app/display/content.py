@@ -45,7 +45,7 @@ def missed_truth(truth_boxes: Sequence[Box], tracks: Sequence[Track]) -> list[in
 
 def cue_text(warning_s: float) -> str:
     """The legend's colour key of the per-object TTC cue."""
-    return f"colour: TTC <{warning_s:g}s red, <{2 * warning_s:g}s orange"
+    return f"TTC <{warning_s:g}s orange, <{2 * warning_s:g}s yellow"
 
 
 def header_lines(result: FrameResult, ego_speed: float | None) -> list[str]:

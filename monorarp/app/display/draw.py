@@ -29,11 +29,12 @@ def _text(img: np.ndarray, text: str, org: tuple[int, int], scale: float, colour
 
 
 def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warning_s: float = TTC_CUE_THRESHOLD_S,
-                    kind: str = "inverse_ttc") -> None:
+                    kind: str = "inverse_ttc", warned: bool = False) -> None:
     """Vertical gauge at the right edge: fill = risk / full_scale.
 
-    ``kind="inverse_ttc"``: risk in 1/s, red tick at 1 / warning_s. ``"probability"``:
-    risk in [0, 1] on a full scale of 1, coloured green/yellow/orange/red by quarters.
+    ``kind="inverse_ttc"``: risk in 1/s, coloured as the per-object TTC cue of 1 / risk, a tick at
+    1 / warning_s. ``"probability"``: risk in [0, 1] on a full scale of 1, green/yellow/orange by
+    quarters. Red only when ``warned`` (the warning stage warns this frame).
     """
     probability = kind == "probability"
     if probability:
@@ -44,8 +45,10 @@ def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warni
     frac = float(np.clip(risk / full_scale, 0.0, 1.0)) if full_scale > 0 else 0.0
     cv2.rectangle(img, (x1, y1), (x2, y2), (40, 40, 40), -1)
     fill_top = int(round(y2 - frac * (y2 - y1)))
-    if probability:
-        colour = (GREEN, YELLOW, ORANGE, RED)[min(3, int(frac * 4))]
+    if warned:                      # red only while the warning stage warns: one meaning of red
+        colour = RED
+    elif probability:
+        colour = (GREEN, YELLOW, ORANGE, ORANGE)[min(3, int(frac * 4))]
     else:
         colour = ttc_colour(1.0 / risk if risk > 0 else None, warning_s)
     if frac > 0:
@@ -54,7 +57,7 @@ def draw_risk_gauge(img: np.ndarray, risk: float, full_scale: float = 1.0, warni
     tick = 1.0 / warning_s / full_scale
     if not probability and 0 < tick <= 1:
         ty = int(round(y2 - tick * (y2 - y1)))
-        cv2.line(img, (x1 - 3, ty), (x2, ty), RED, 1)
+        cv2.line(img, (x1 - 3, ty), (x2, ty), ORANGE, 1)   # the cue's 1 / warning_s
     scale = gauge_font_scale(h)
     _text(img, "risk", geo.top, scale, WHITE)
     _text(img, gauge_text(risk, kind), geo.bottom, scale, colour)
@@ -96,10 +99,10 @@ def _draw_legend(img: np.ndarray, rect: Rect, sample: int, lh: int, warning_s: f
         top = y1 + 3 + k * lh
         sx1, sy1, sx2, sy2 = x1 + 4, top + 2, x1 + sample - 2, top + lh - 3
         kind = LEGEND[k][0] if k < len(LEGEND) else None
-        if kind == "box":
-            cv2.rectangle(img, (sx1, sy1), (sx2, sy2), ORANGE, thick + 1)
+        if kind == "box":                  # green: a box's colour without a TTC (the key below gives the others)
+            cv2.rectangle(img, (sx1, sy1), (sx2, sy2), GREEN, thick + 1)
         elif kind == "thin":
-            cv2.rectangle(img, (sx1, sy1), (sx2, sy2), ORANGE, 1)
+            cv2.rectangle(img, (sx1, sy1), (sx2, sy2), GREEN, 1)
         elif kind == "dashed":
             _dashed_rect(img, (sx1, sy1, sx2 + 1, sy2 + 1), GREY, dash=3)
         elif kind == "warned":
@@ -199,7 +202,8 @@ def draw_frame(image: np.ndarray, result: FrameResult, *, warning_s: float = TTC
         cv2.circle(img, (x1 + 3 + rad, (y1 + y2) // 2), rad, GREEN, -1, cv2.LINE_AA)
         _, th, _ = text_size("FCW ready", scale, thick)
         cv2.putText(img, "FCW ready", (x1 + 2 * rad + 8, y1 + 2 + th), FONT, scale, GREY, thick, cv2.LINE_AA)
-    draw_risk_gauge(img, float(result.risk.risk), risk_full_scale, warning_s, getattr(result.risk, "kind", "inverse_ttc"))
+    draw_risk_gauge(img, float(result.risk.risk), risk_full_scale, warning_s, getattr(result.risk, "kind", "inverse_ttc"),
+                    warned=bool(result.warning.active))
     if layout.legend is not None:
         _, sample, lh = legend_geometry(img.shape[0], img.shape[1], warning_s)
         _draw_legend(img, layout.legend, sample, lh, warning_s, legend_font_scale(img.shape[0]))

@@ -14,15 +14,16 @@ Colour = tuple[int, int, int]
 
 
 def ttc_colour(ttc: float | None, warning_s: float = TTC_CUE_THRESHOLD_S) -> Colour:
-    """BGR colour of a box with per-object time to collision ``ttc`` (s; None = no collision course):
-    red below the cue ``warning_s``, orange below twice it, yellow for any other TTC, green for none."""
+    """BGR colour of a box with per-object time to collision ``ttc`` (s; None = no collision course), the
+    paper's cue: orange below ``warning_s``, yellow below twice it, green otherwise. Red is kept for the
+    object the warning stage alerts on (:func:`..content.box_colour`), so a red box always means a warning."""
     if ttc is None or not np.isfinite(ttc):
         return GREEN
     if ttc < warning_s:
-        return RED
-    if ttc < 2 * warning_s:
         return ORANGE
-    return YELLOW
+    if ttc < 2 * warning_s:
+        return YELLOW
+    return GREEN
 
 
 def font_scale(h: int) -> float:
