@@ -12,7 +12,7 @@ from monorarp.pipeline import registry
 from monorarp.app.cli import build_parser, main
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.state.config import REAL_FRAMES_STATE
-from monorarp.app.options import (CLI_EGO_SPEED, REAL_FRAMES, add_pipeline_options,
+from monorarp.app.options import (CLI_EGO_SPEED, REAL_FRAMES, REAL_FRAMES_RISK, add_pipeline_options,
                                      default_pipeline_config, pipeline_config)
 from monorarp.core.errors import UserError
 from monorarp.pipeline.config import REAL_WORLD_DETECTOR, ComponentConfig, PipelineConfig
@@ -75,18 +75,28 @@ def test_defaults_identical_across_commands():
     kitti = pipeline_config(parse("eval", "kitti", "d", "--out", "x"))
     assert run == default_pipeline_config()
     assert video == default_pipeline_config(REAL_FRAMES) == VideoRunOptions().pipeline
-    # only the detector and the state's real-frame settings differ
+    # only the detector and the state's and TTC risk's real-frame settings differ
     assert video == run.model_copy(update={"detector": C(REAL_WORLD_DETECTOR),
-                                           "state": C("geometric", **REAL_FRAMES_STATE, velocity="kalman")})
+                                           "state": C("geometric", **REAL_FRAMES_STATE, velocity="kalman"),
+                                           "risk": C("ttc", **REAL_FRAMES_RISK)})
     assert run.ego_speed == C(CLI_EGO_SPEED) and PipelineConfig().ego_speed is None
     for cfg in (run, video, bench, card, kitti):
         assert cfg.detector.name == (REAL_WORLD_DETECTOR if cfg is video else PipelineConfig().detector.name)
         assert cfg.tracker.name == PipelineConfig().tracker.name
-        assert cfg.risk == PipelineConfig().risk and cfg.warning == PipelineConfig().warning
+        assert cfg.risk == (C("ttc", **REAL_FRAMES_RISK) if cfg is video else PipelineConfig().risk)
+        assert cfg.warning == PipelineConfig().warning
     # real frames: yolox; rendered ones: centernet
     assert REAL_WORLD_DETECTOR == "yolox" and PipelineConfig().detector.name == "centernet"
     assert parse("eval", "kitti", "d", "--out", "x").detector is None    # by the dataset: test_yolox.py
     assert parse("run", "s.yaml").warning_threshold == TTC_CUE_THRESHOLD_S
+
+
+def test_real_frames_risk_settings_go_to_ttc_estimators_only():
+    assert REAL_FRAMES_RISK == {"velocity_sigmas": 2.0}
+    video = lambda *a: pipeline_config(parse("video", "in.mp4", "--camera", "c.yaml", *a)).risk   # noqa: E731
+    assert video("--risk", "manoeuvre_ttc") == C("manoeuvre_ttc", **REAL_FRAMES_RISK)   # a TTCRiskEstimator
+    assert video("--risk", "monte_carlo") == C("monte_carlo")                          # it takes no such setting
+    assert run_config("--risk", "ttc").risk == C("ttc")                                # rendered frames: off
 
 
 def test_onnx_path_is_the_detector_name_and_builds(tmp_path):

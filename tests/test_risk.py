@@ -7,7 +7,7 @@ import pytest
 
 from monorarp.core.camera import CameraModel
 from monorarp.pipeline.registry import create
-from monorarp.risk.estimators import ManoeuvreTTCRisk, TTCRiskEstimator
+from monorarp.risk.estimators import ManoeuvreTTCRisk, TTCRiskEstimator, significant_velocity
 from monorarp.core.types import ObjectState, RiskEstimate
 
 
@@ -27,6 +27,30 @@ def test_closing_straight_ahead_is_gap_over_speed():
     gap = 20.0 - 4.5 / 2                      # rear face to the ego's front (camera at the ego centre)
     assert est.ttc[3] == pytest.approx(gap / 5.0)
     assert est.risk == pytest.approx(5.0 / gap)
+
+
+def test_significant_velocity_ttc_is_the_closed_form_of_what_its_sigmas_leave():
+    gap = 20.0 - 4.5 / 2
+    r = TTCRiskEstimator(velocity_sigmas=2.0)
+    old = dict(d_y_std=0.5, v_y_std=3.0, age_s=2.0)   # distance floor sqrt(2) 0.5 / 2 = 0.35 m/s < 3 m/s
+    assert r.ttc({1: ObjectState(1, 0.0, 20.0, 0.0, -5.0, **old)})[1] is None            # 5 m/s within 2 sigmas
+    assert r.ttc({1: ObjectState(1, 0.0, 20.0, 0.0, -10.0, **old)})[1] == pytest.approx(gap / 4.0)   # 10 - 6
+    assert TTCRiskEstimator().ttc({1: ObjectState(1, 0.0, 20.0, 0.0, -5.0, **old)})[1] == pytest.approx(gap / 5.0)
+    # the distance's sigma over the age floors the velocity's: a young track's 10 m/s is no motion
+    young = ObjectState(1, 0.0, 20.0, 0.0, -10.0, d_y_std=1.0, v_y_std=1.0, age_s=0.1)   # floor 14.1 m/s
+    assert significant_velocity(young, 2.0)[1] == 0.0 and r.ttc({1: young})[1] is None
+    aged = ObjectState(1, 0.0, 20.0, 0.0, -10.0, d_y_std=1.0, v_y_std=1.0, age_s=2.0)    # floor 0.71 m/s
+    assert r.ttc({1: aged})[1] == pytest.approx(gap / 8.0)
+    # lateral: sign kept, shrunk by its own sigma; no sigma: as is; age 0: none on an axis with a distance sigma
+    assert significant_velocity(ObjectState(1, 0.0, 20.0, -3.0, -10.0, v_x_std=1.0), 2.0) == (-1.0, -10.0)
+    assert significant_velocity(ObjectState(1, 0.0, 20.0, 2.0, -10.0, d_y_std=1.0, v_y_std=1.0, age_s=0.0),
+                                2.0) == (2.0, 0.0)
+
+
+@pytest.mark.parametrize("k", [-1.0, float("nan"), float("inf")])
+def test_velocity_sigmas_must_be_a_non_negative_number(k):
+    with pytest.raises(ValueError, match="velocity_sigmas"):
+        TTCRiskEstimator(velocity_sigmas=k)
 
 
 def test_camera_offset_moves_the_ego_front():

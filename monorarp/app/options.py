@@ -13,7 +13,9 @@ command-line defaults stated here because they differ from a bare config:
   (``video``: :data:`REAL_FRAMES`), to :class:`PipelineConfig`'s (``centernet``) where they are rendered;
 * where the frames are real (:data:`REAL_FRAMES`) the state estimator gets
   :data:`~monorarp.state.config.REAL_FRAMES_STATE` (the size prior on, the box bottom at the rear face);
-  ``--size-prior on|off`` sets ``size_prior`` alone; left out elsewhere, the config is as given.
+  ``--size-prior on|off`` sets ``size_prior`` alone; left out elsewhere, the config is as given;
+* where the frames are real, a risk stage built on :class:`~monorarp.risk.estimators.TTCRiskEstimator`
+  (``ttc``, ``manoeuvre``) gets :data:`REAL_FRAMES_RISK`: the TTC from the significant velocity.
 
 The TTC thresholds (the warning stage's alert, the paper's per-object cue) are defined once, in
 :mod:`monorarp.warning.thresholds`. The other options several commands share (``--frames``, ``--out``,
@@ -38,7 +40,11 @@ DEFAULT_VELOCITY = "kalman"
 CALIBRATED = "calibrated"               # --horizon: the calibration's horizon, no horizon stage
 NONE = "none"                           # --ego-speed: no ego-speed stage
 REAL_FRAMES = {"detector": REAL_WORLD_DETECTOR,   # the defaults of the commands whose frames are real (video)
-               "size_prior": "on"}
+               "size_prior": "on", "significant_velocity": "on"}
+#: The TTC risk settings where frames are real: each velocity component counted beyond 2 of its one-sigmas
+#: (floored by the distance's over the track's age: monorarp.risk.estimators.significant_velocity), the
+#: 95 % bound (1.96 sigma) a real box's velocity must clear to be taken as motion (docs/pipeline.md).
+REAL_FRAMES_RISK: dict[str, Any] = {"velocity_sigmas": 2.0}
 
 
 class _RegistryHelp(str):
@@ -106,6 +112,7 @@ def add_pipeline_options(p: argparse.ArgumentParser, stages: Iterable[str] = STA
                        help=_RegistryHelp("ego_speed", "lane-marking ego-speed estimator ({names}), or none "
                                           f"(default: {default('ego_speed')})"))
     if "risk" in stages:
+        p.set_defaults(_risk_defaults=REAL_FRAMES_RISK if defaults.get("significant_velocity") == "on" else {})
         p.add_argument("--risk", default=default("risk"), metavar="NAME",
                        help=_RegistryHelp("risk", "risk estimator ({names}): ttc is the paper's 1/TTC, monte_carlo "
                                           "IDM/MOBIL rollouts, which take the ego speed from the ego-speed "
@@ -167,7 +174,7 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
             kw["size_prior"] = size == "on"
         update["state"] = ComponentConfig(name=cfg.state.name, kwargs=kw)
     if "risk" in stages:
-        update["risk"] = _component("risk", "--risk", args.risk, check=check)
+        update["risk"] = _component("risk", "--risk", args.risk, _risk_defaults(args), check)
     if "ego_speed" in stages:
         ego = str(args.ego_speed)
         update["ego_speed"] = None if ego.lower() == NONE else _component("ego_speed", "--ego-speed", ego, check=check)
@@ -175,6 +182,20 @@ def pipeline_config(args: argparse.Namespace, base: PipelineConfig | None = None
         update["horizon"] = None if args.horizon == CALIBRATED else _component("horizon", "--horizon", args.horizon,
                                                                                    check=check)
     return cfg.model_copy(update=update)
+
+
+def _risk_defaults(args: argparse.Namespace) -> dict[str, Any]:
+    """:data:`REAL_FRAMES_RISK` where the command asks for it and ``--risk`` names a TTC estimator, else none."""
+    kw = getattr(args, "_risk_defaults", {})
+    if not kw:
+        return {}
+    from monorarp.risk.estimators import TTCRiskEstimator
+
+    try:
+        factory = registry.get_factory("risk", str(args.risk))
+    except registry.UnknownComponentError:
+        return {}   # refused with its option's name by _component (or by Pipeline.from_config)
+    return dict(kw) if isinstance(factory, type) and issubclass(factory, TTCRiskEstimator) else {}
 
 
 def default_pipeline_config(defaults: dict[str, str] | None = None) -> PipelineConfig:

@@ -15,6 +15,12 @@ collision course. Units: m, m/s, s; risk in 1/s.
 one-sigma distance and closing-speed uncertainties through the longitudinal gap
 ``g / c`` (``g`` = TTC x closing speed ``c = -v_y``):
 ``sigma_ttc = sqrt((sigma_d / c)^2 + (TTC sigma_v / c)^2)``; for objects with a TTC and both sigmas.
+
+**Significant velocity** (``velocity_sigmas`` k, default None: off; on where frames are real,
+:data:`monorarp.app.options.REAL_FRAMES_RISK`): the TTC is taken at the part of each velocity component
+its uncertainty cannot explain, ``sign(v) max(0, |v| - k sigma_v)``, with ``sigma_v`` at least
+``sqrt(2) sigma_d / age_s`` (:func:`significant_velocity`): a velocity within k sigmas of zero gives no
+approach on that axis, one beyond gives the closed-form TTC of what is left.
 """
 
 from __future__ import annotations
@@ -47,9 +53,13 @@ class TTCRiskEstimator:
     def __init__(self, other_width_m: float = 1.8, other_length_m: float = 4.5, ego_width_m: float = 1.8,
                  ego_length_m: float = 4.5, camera_forward_offset_m: float = 0.0,
                  camera_lateral_offset_m: float = 0.0, horizon_s: float = HORIZON_S,
-                 min_ttc_s: float = 0.1, camera: CameraModel | None = None) -> None:
+                 min_ttc_s: float = 0.1, velocity_sigmas: float | None = None,
+                 camera: CameraModel | None = None) -> None:
         if min_ttc_s <= 0 or horizon_s <= 0:
             raise ValueError(f"min_ttc_s and horizon_s must be positive, got {min_ttc_s}, {horizon_s}")
+        if velocity_sigmas is not None and not (np.isfinite(velocity_sigmas) and velocity_sigmas >= 0):
+            raise ValueError(f"velocity_sigmas must be >= 0 or None, got {velocity_sigmas}")
+        self.velocity_sigmas = None if velocity_sigmas is None else float(velocity_sigmas)
         if camera is not None:
             camera_forward_offset_m, camera_lateral_offset_m = camera.forward_offset_m, camera.lateral_offset_m
         self.other_width_m, self.other_length_m = float(other_width_m), float(other_length_m)
@@ -65,11 +75,15 @@ class TTCRiskEstimator:
         if not states:
             return {}
         ids = list(states)
-        arr = np.array([[s.d_x, s.d_y, s.v_x, s.v_y] for s in states.values()], dtype=float)
+        arr = np.array([[s.d_x, s.d_y, *self.velocity(s)] for s in states.values()], dtype=float)
         x_lo, x_hi, y_lo, y_hi = object_extents(arr[:, 0], arr[:, 1], self.other_width_m, self.other_length_m)
         ttc = time_to_collision(x_lo, x_hi, y_lo, y_hi, arr[:, 2], arr[:, 3], self.ego_x, self.ego_y,
                                 self.horizon_s)
         return {i: (None if np.isnan(v) else float(v)) for i, v in zip(ids, ttc)}
+
+    def velocity(self, s: ObjectState) -> tuple[float, float]:
+        """``(v_x, v_y)`` (m/s) the TTC is taken at: the state's, or with ``velocity_sigmas`` its significant part."""
+        return (s.v_x, s.v_y) if self.velocity_sigmas is None else significant_velocity(s, self.velocity_sigmas)
 
     def assess(self, states: dict[int, ObjectState], t: float | None = None,
                ego_speed: float | None = None) -> RiskEstimate:
@@ -79,6 +93,27 @@ class TTCRiskEstimator:
         finite = [v for v in ttc.values() if v is not None]
         risk = max((1.0 / max(v, self.min_ttc_s) for v in finite), default=0.0)
         return RiskEstimate(risk=float(risk), ttc=ttc, ttc_std=ttc_std(states, ttc))
+
+
+def significant_velocity(s: ObjectState, sigmas: float) -> tuple[float, float]:
+    """``(v_x, v_y)`` (m/s), each ``sign(v) max(0, |v| - sigmas sigma_v)``: the part its uncertainty cannot explain.
+
+    ``sigma_v`` is the state's one-sigma (None: the component as is), at least ``sqrt(2) sigma_d / age_s``
+    (``sigma_d`` the one-sigma of the same axis's distance): the error of a velocity read from two
+    distances ``age_s`` apart whose errors do not average out. A restarted filter's own sigma assumes
+    independent frame errors and soon falls below that, while a new box's error persists for many
+    frames (docs/pipeline.md). Age 0: no velocity on an axis with a distance sigma; no age: no floor.
+    """
+    out = []
+    for v, v_std, d_std in ((s.v_x, s.v_x_std, s.d_x_std), (s.v_y, s.v_y_std, s.d_y_std)):
+        if v_std is None:
+            out.append(float(v))
+            continue
+        std = float(v_std)
+        if d_std is not None and s.age_s is not None:
+            std = max(std, np.inf if s.age_s <= 0 else np.sqrt(2.0) * float(d_std) / float(s.age_s))
+        out.append(float(np.sign(v) * max(0.0, abs(v) - (sigmas * std if sigmas > 0 else 0.0))))
+    return out[0], out[1]
 
 
 def ttc_std(states: dict[int, ObjectState], ttc: dict[int, float | None]) -> dict[int, float]:
@@ -185,9 +220,9 @@ class ManoeuvreTTCRisk(TTCRiskEstimator):
 
     def closing_velocity(self, s: ObjectState) -> float:
         """Relative longitudinal velocity ``v_y`` (m/s, negative = closing) the hypotheses start from: the
-        filter's mixed with the looming cue's ``-expansion_rate x d_y``, then with the registered patch's
+        filter's (:meth:`velocity`) mixed with the looming cue's ``-expansion_rate x d_y``, then with the registered patch's
         ``-registered_rate x d_y`` (class docstring); a rate without a one-sigma counts as within its bound."""
-        v_y = s.v_y
+        v_y = self.velocity(s)[1]
         if _trusted(s.expansion_rate, s.expansion_rate_std, self.looming_max_std) and self.looming_weight > 0:
             v_y = (1 - self.looming_weight) * v_y - self.looming_weight * s.expansion_rate * s.d_y
         if _trusted(s.registered_rate, s.registered_rate_std, self.registered_max_std) and self.registered_weight > 0:
