@@ -1,6 +1,6 @@
 """Frames/s of simulation + rendering (colour + id pass + ground truth) with 30 vehicles.
 
-Usage: python benchmarks/bench_render.py [--frames N]
+Usage: python benchmarks/bench_render.py [--frames N] [--look simple|realistic|both]
 Uses harness.simulation when present, else synthetic constant-velocity traffic.
 Prints one line per resolution: wall-clock frames/s and the process CPU time per
 frame (all threads; a fairer figure when other jobs share the cores).
@@ -20,13 +20,14 @@ from harness.world.scenario import Scenario, parse_scenario
 from harness.world.state import VehicleState, WorldState
 
 
-def scenario_for(width: int, height: int) -> Scenario:
+def scenario_for(width: int, height: int, look: str = "simple") -> Scenario:
     return parse_scenario({
         "name": "bench", "seed": 1, "fps": 15,
         "road": {"lanes": 4},
         "traffic": {"vehicles_count": 30, "density": 1.5},
         "ego": {"lane": 1, "speed_mps": 25.0},
         "camera": {"width": width, "height": height},
+        "render": {"look": look},
     })
 
 
@@ -55,8 +56,8 @@ def states(scenario: Scenario, n_frames: int):
     return simulate(scenario, n_frames), "harness.simulation"
 
 
-def bench(width: int, height: int, n_frames: int) -> None:
-    scenario = scenario_for(width, height)
+def bench(width: int, height: int, n_frames: int, look: str = "simple") -> None:
+    scenario = scenario_for(width, height, look)
     with Renderer(scenario) as renderer:
         it, source = states(scenario, n_frames + 3)
         t_sim = t_render = t_truth = 0.0
@@ -78,7 +79,7 @@ def bench(width: int, height: int, n_frames: int) -> None:
             t_sim, t_render, t_truth = t_sim + b - a, t_render + c - b, t_truth + d - c
             n_obj += len(truth.objects)
         total, cpu = time.perf_counter() - t0, time.process_time() - c0
-    print(f"{width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
+    print(f"{look} look, {width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
           f"{n_frames / total:.1f} frames/s (process CPU {1e3 * cpu / n_frames:.1f} ms/frame, all threads); per frame sim {1e3 * t_sim / n_frames:.1f} ms, "
           f"render {1e3 * t_render / n_frames:.1f} ms, truth {1e3 * t_truth / n_frames:.1f} ms")
 
@@ -86,9 +87,11 @@ def bench(width: int, height: int, n_frames: int) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--look", choices=("simple", "realistic", "both"), default="both")
     args = ap.parse_args()
-    for w, h in ((640, 360), (1280, 720)):
-        bench(w, h, args.frames)
+    for look in ("simple", "realistic") if args.look == "both" else (args.look,):
+        for w, h in ((640, 360), (1280, 720)):
+            bench(w, h, args.frames, look)
 
 
 if __name__ == "__main__":

@@ -12,8 +12,8 @@ from monorarp.pipeline import registry
 from monorarp.app.cli import build_parser, main
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
 from monorarp.state.config import REAL_FRAMES_STATE
-from monorarp.app.options import (CLI_EGO_SPEED, REAL_FRAMES, REAL_FRAMES_RISK, add_pipeline_options,
-                                     default_pipeline_config, pipeline_config)
+from monorarp.app.options import (CLI_EGO_SPEED, REAL_FRAMES, REAL_FRAMES_RISK, REAL_FRAMES_WARNING,
+                                  add_pipeline_options, default_pipeline_config, pipeline_config)
 from monorarp.core.errors import UserError
 from monorarp.pipeline.config import REAL_WORLD_DETECTOR, ComponentConfig, PipelineConfig
 from monorarp.app.video.run import VideoRunOptions
@@ -62,7 +62,8 @@ def test_video_options_round_trip():
     # and the real-frame state settings (the size prior)
     assert cfg == PipelineConfig(detector=C("yolox"), tracker=C("kcf"),
                                  state=C("geometric", **REAL_FRAMES_STATE, velocity="kalman"),
-                                 risk=C("monte_carlo"), ego_speed=None, horizon=C("online"))
+                                 risk=C("monte_carlo"), ego_speed=None, horizon=C("online"),
+                                 warning=C("fcw", **REAL_FRAMES_WARNING))
 
 
 def test_defaults_identical_across_commands():
@@ -75,16 +76,17 @@ def test_defaults_identical_across_commands():
     kitti = pipeline_config(parse("eval", "kitti", "d", "--out", "x"))
     assert run == default_pipeline_config()
     assert video == default_pipeline_config(REAL_FRAMES) == VideoRunOptions().pipeline
-    # only the detector and the state's and TTC risk's real-frame settings differ
+    # only the detector and the state's, TTC risk's and warning's real-frame settings differ
     assert video == run.model_copy(update={"detector": C(REAL_WORLD_DETECTOR),
                                            "state": C("geometric", **REAL_FRAMES_STATE, velocity="kalman"),
-                                           "risk": C("ttc", **REAL_FRAMES_RISK)})
+                                           "risk": C("ttc", **REAL_FRAMES_RISK),
+                                           "warning": C("fcw", **REAL_FRAMES_WARNING)})
     assert run.ego_speed == C(CLI_EGO_SPEED) and PipelineConfig().ego_speed is None
     for cfg in (run, video, bench, card, kitti):
         assert cfg.detector.name == (REAL_WORLD_DETECTOR if cfg is video else PipelineConfig().detector.name)
         assert cfg.tracker.name == PipelineConfig().tracker.name
         assert cfg.risk == (C("ttc", **REAL_FRAMES_RISK) if cfg is video else PipelineConfig().risk)
-        assert cfg.warning == PipelineConfig().warning
+        assert cfg.warning == (C("fcw", **REAL_FRAMES_WARNING) if cfg is video else PipelineConfig().warning)
     # real frames: yolox; rendered ones: centernet
     assert REAL_WORLD_DETECTOR == "yolox" and PipelineConfig().detector.name == "centernet"
     assert parse("eval", "kitti", "d", "--out", "x").detector is None    # by the dataset: test_yolox.py

@@ -217,10 +217,13 @@ class BenchConfig:
     eval: EvalConfig = EvalConfig()
     #: frame cache (harness.run.frame_cache), or a callable giving it once the inputs are checked; None: render
     cache: FrameCache | Callable[[], FrameCache | None] | None = None
+    #: applied to every scenario as loaded (e.g. the command line's ``--look``); None: as written
+    adjust: Callable[[Scenario], Scenario] | None = None
 
 
 def _load_scenarios(paths: Sequence[str | Path], seeds: Sequence[int] | None = None,
-                    exact_frames: int | None = None) -> list[tuple[str, Scenario]]:
+                    exact_frames: int | None = None,
+                    adjust: Callable[[Scenario], Scenario] | None = None) -> list[tuple[str, Scenario]]:
     """(unique name, scenario) of every sequence: each scenario as written, or at each of ``seeds``
     (named ``"<name> seed <s>"``). A file listed twice is refused (it would count its sequences twice),
     and with ``exact_frames`` a scenario shorter than that."""
@@ -235,6 +238,7 @@ def _load_scenarios(paths: Sequence[str | Path], seeds: Sequence[int] | None = N
     out: list[tuple[str, Scenario]] = []
     for p in paths:
         base = p if isinstance(p, Scenario) else load_scenario(p)
+        base = base if adjust is None else adjust(base)
         if exact_frames is not None:
             frames_to_simulate(base, exact_frames, p if not isinstance(p, Scenario) else base.name, "benchmark")
         variants = [(base.name, base)] if seeds is None else \
@@ -255,7 +259,8 @@ def bench_trackers(config: BenchConfig = BenchConfig(), log: Callable[[str], Non
     trackers = check_trackers(config.trackers)
     if config.frames is not None and config.frames <= 0:
         raise BenchError(f"frames must be a positive integer, got {config.frames}")
-    scenarios = _load_scenarios(config.scenarios, config.seeds, None if config.cap_frames else config.frames)
+    scenarios = _load_scenarios(config.scenarios, config.seeds, None if config.cap_frames else config.frames,
+                                config.adjust)
     from monorarp.pipeline.detectors import build_detector
 
     check_weak_detections(config.pipeline.detector, trackers, "--weak-detections")

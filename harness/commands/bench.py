@@ -10,6 +10,7 @@ from pathlib import Path
 
 from harness.commands.cache_args import add_cache_arguments, cache_from_args
 from harness.commands.detector_args import add_oracle_arguments, pipeline_config
+from harness.commands.look_args import add_look_arguments, apply_look
 from monorarp.app.common_options import add_frames_option, add_out_option
 from monorarp.app.options import add_pipeline_options
 from monorarp.core.errors import UserError
@@ -73,6 +74,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_frames_option(t, help="frames per scenario, 1 <= N <= its duration_s x fps (default: "
                               f"{DEFAULT_FRAMES}, or all of a shorter scenario)")
     add_cache_arguments(t)
+    add_look_arguments(t)
     add_out_option(t, default=Path("runs") / "bench-trackers",
                    help="output directory (default: runs/bench-trackers; a previous benchmark there is replaced)")
     t.set_defaults(func=run_trackers)
@@ -92,6 +94,7 @@ def run_trackers(args: argparse.Namespace) -> int:
                       frames=DEFAULT_FRAMES if args.frames is None else args.frames, cap_frames=args.frames is None,
                       seeds=seeds)
     cfg.cache = lambda: cache_from_args(args)
+    cfg.adjust = lambda sc: apply_look(sc, args)
     result = run_bench(cfg, out_dir=args.out, log=stderr_log)
     print(table_iii(result))
     print(f"\nwrote {args.out}/trackers.json and {args.out}/trackers.md")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from harness.commands.look_args import add_look_arguments, apply_look
 from monorarp.app.common_options import add_frames_option, add_out_option
 from monorarp.core.errors import UserError
 from monorarp.pipeline.config import PipelineConfig
@@ -36,6 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--detector", default=None, metavar="NAME|PATH.onnx|oracle|none",
                    help=f"mot: the detector whose boxes go to det/det.txt (default {DEFAULT_MOT_DETECTOR}; "
                         "'none' writes no det/); not used by the KITTI formats")
+    add_look_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -49,7 +51,9 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--detector: only --format mot writes detections (det/det.txt), not --format {args.format}")
     elif det_name is None:
         det_name = DEFAULT_MOT_DETECTOR
-    source = open_source(args.source, args.frames)
+    if args.source.is_dir() and any(v is not None for v in (args.look, args.look_family, args.look_seed)):
+        raise UserError(f"--look: {args.source} is a run directory, rendered already; give a scenario file")
+    source = open_source(args.source, args.frames, lambda sc: apply_look(sc, args))
     detector = None
     if det_name is not None and det_name.lower() != "none":
         from monorarp.pipeline.detectors import build_detector

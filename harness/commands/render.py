@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from monorarp.app.common_options import add_frames_option, add_out_option
+from harness.commands.look_args import add_look_arguments, apply_look
 from monorarp.core.errors import UserError
 
 VIDEO_NAME = "frames.mp4"
@@ -36,6 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scenario", type=Path, metavar="SCENARIO.yaml", help="scenario file")
     add_out_option(p, required=True, help="output directory (created; a previous render there is replaced)")
     add_frames_option(p, help="render only the first N frames (1 .. duration_s * fps; default: all)")
+    add_look_arguments(p)
     p.add_argument("--crf", type=int, default=18, metavar="Q",
                    help="H.264 quality, x264 constant rate factor 0..51 (lower = better; default 18)")
     p.set_defaults(func=run)
@@ -46,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
 
     if not 0 <= args.crf <= 51:
         raise UserError(f"--crf: must be in 0..51, got {args.crf}")
-    scenario = load_scenario(args.scenario)
+    scenario = apply_look(load_scenario(args.scenario), args)
     n_frames = frames_to_simulate(scenario, args.frames, args.scenario, "render")
     try:
         stats = render_scenario(scenario, args.out, n_frames, crf=args.crf)

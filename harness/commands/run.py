@@ -14,6 +14,7 @@ from harness.commands.detector_args import add_oracle_arguments, pipeline_config
 from monorarp.app.common_options import add_frames_option, add_no_video_option, add_out_option, add_threaded_option
 from monorarp.app.options import add_pipeline_options
 from monorarp.warning.thresholds import TTC_CUE_THRESHOLD_S
+from harness.commands.look_args import add_look_arguments, apply_look
 from monorarp.core.errors import UserError
 
 
@@ -36,6 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default 10)")
     add_frames_option(p, help="run only the first N frames (1 .. duration_s * fps; default: all)")
     add_out_option(p, help="output directory (default: runs/<scenario name>; a previous run there is replaced)")
+    add_look_arguments(p)
     add_threaded_option(p)
     add_no_video_option(p, help="write neither annotated.mp4 nor frames.mp4")
     p.add_argument("--warning-threshold", type=float, default=TTC_CUE_THRESHOLD_S, metavar="S",
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.risk_horizon > 0:
         raise UserError(f"--risk-horizon: must be positive (s), got {args.risk_horizon}")
     cfg = pipeline_config(args)
-    scenario = load_scenario(args.scenario)
+    scenario = apply_look(load_scenario(args.scenario), args)
     n_frames = frames_to_simulate(scenario, args.frames, args.scenario, "run")
     out = args.out if args.out is not None else Path("runs") / scenario.name
     try:

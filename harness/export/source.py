@@ -15,11 +15,12 @@ Everything the export needs is checked by :func:`open_source` before any output 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from harness.run.outputs import CAMERA_NAME, GROUND_TRUTH_NAME, METRICS_NAME, VIDEO_NAME
+from harness.world.scenario import Scenario
 from harness.world.truth import FrameTruth
 from monorarp.app.common_options import check_frames, frames_within
 from monorarp.core.camera import CameraModel
@@ -46,8 +47,10 @@ class ExportSource:
     frames: Iterator[tuple[Frame, FrameTruth]]
 
 
-def open_source(path: str | Path, n_frames: int | None = None) -> ExportSource:
-    """The first ``n_frames`` (default: all) of a scenario file or a run directory."""
+def open_source(path: str | Path, n_frames: int | None = None,
+                adjust: Callable[[Scenario], Scenario] | None = None) -> ExportSource:
+    """The first ``n_frames`` (default: all) of a scenario file (changed by ``adjust`` when given, e.g. its
+    look) or a run directory."""
     path = Path(path)
     check_frames(n_frames, ExportInputError)
     if path.is_dir():
@@ -55,17 +58,18 @@ def open_source(path: str | Path, n_frames: int | None = None) -> ExportSource:
     if path.suffix.lower() in (".yaml", ".yml"):
         if not path.is_file():
             raise ExportInputError(f"{path}: no such scenario file")
-        return _scenario(path, n_frames)
+        return _scenario(path, n_frames, adjust)
     if not path.exists():
         raise ExportInputError(f"{path}: no such run directory or scenario file")
     raise ExportInputError(f"{path}: neither a run directory nor a scenario file (.yaml)")
 
 
-def _scenario(path: Path, n_frames: int | None) -> ExportSource:
+def _scenario(path: Path, n_frames: int | None, adjust: Callable[[Scenario], Scenario] | None = None) -> ExportSource:
     from harness.run.frame_feed import rendered_frames
     from harness.world.scenario import ScenarioError, frames_to_simulate, load_scenario
 
     scenario = load_scenario(path)
+    scenario = scenario if adjust is None else adjust(scenario)
     n = frames_to_simulate(scenario, n_frames, path, "export")
     try:
         frames = rendered_frames(scenario, n)          # sets the simulation up: its errors come here

@@ -38,6 +38,7 @@ import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
 
 from harness.render import effects, meshes, passes, road, shading, visibility  # noqa: E402
+from harness.render.realistic import OCCLUDER_CODE, RealisticScene, VehicleParts, flat_mesh  # noqa: E402
 from harness.world import geometry  # noqa: E402
 from harness.world.vehicles import vehicle_height  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
@@ -50,6 +51,7 @@ ZNEAR_M = 0.05
 ZFAR_M = 6000.0
 PIXEL_CENTRE_SHIFT = 0.5
 HEADING_BIN_RAD = math.radians(1.0)
+ANISOTROPY = 1.0          # realistic look: the road's textures at grazing angles
 _live_renderers = 0   # pyrender's EGL teardown terminates the shared display: only the last may do it
 
 
@@ -70,15 +72,6 @@ class RenderedFrame:
     id_mask: np.ndarray
     full_pixels: dict[int, float] = field(default_factory=dict)
     camera: CameraModel | None = None    # the frame's true camera when the scenario moves it (camera_motion)
-
-
-def _flat_mesh(triangles: np.ndarray, colors: np.ndarray, material: pyrender.Material) -> pyrender.Mesh:
-    """(F, 3, 3) triangles with (F, 3) colours in 0..1 -> one-primitive pyrender mesh."""
-    rgba = np.concatenate([colors, np.ones((len(colors), 1))], axis=1)
-    prim = pyrender.Primitive(positions=triangles.reshape(-1, 3).astype(np.float32),
-                              color_0=np.repeat(rgba, 3, axis=0).astype(np.float32),
-                              material=material, mode=pyrender.constants.GLTF.TRIANGLES)
-    return pyrender.Mesh([prim])
 
 
 def _seg_colour(code: int) -> tuple[int, int, int]:
@@ -144,6 +137,8 @@ class _Vehicle:
     normals: np.ndarray       # (F, 3) model frame
     albedo: np.ndarray        # (F, 3) sRGB 0..255
     heading_bin: int
+    parts: VehicleParts | None = None          # realistic look: the detailed mesh
+    shadow_node: pyrender.Node | None = None   # realistic look: its sun shadow
 
 
 class Renderer:
@@ -173,9 +168,15 @@ class Renderer:
         self._material = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0))
         self._profile = road_profile(scenario.road.profile, scenario.camera.forward_offset_m)
         self._plan = road_plan(scenario.road.curves, scenario.camera.forward_offset_m)
-        for tm in road.road_trimeshes(scenario.road, self._profile, self._plan).values():
-            colors = self._shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w)
-            _add_mesh(self._scene, _flat_mesh(tm.vertices[tm.faces], colors, self._material))
+        self._real: RealisticScene | None = None
+        if opts.look == "realistic":     # the look's sun replaces render.light_* (a daylight look)
+            self._real = RealisticScene(self._scene, scenario, self._profile, self._plan, _add_mesh)
+            self._light_w = self._real.sun_w
+            self._scene.bg_color = np.array([*self._real.sky_srgb, 1.0])
+        else:
+            for tm in road.road_trimeshes(scenario.road, self._profile, self._plan).values():
+                colors = self._shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w)
+                _add_mesh(self._scene, flat_mesh(tm.vertices[tm.faces], colors, self._material))
         c = self.camera
         self._cam = pyrender.IntrinsicsCamera(c.fx, c.fy, c.cx + PIXEL_CENTRE_SHIFT, c.cy + PIXEL_CENTRE_SHIFT,
                                               znear=ZNEAR_M, zfar=ZFAR_M)
@@ -184,7 +185,7 @@ class Renderer:
         global _live_renderers
         self._pr: pyrender.OffscreenRenderer | None = pyrender.OffscreenRenderer(c.width, c.height)
         _live_renderers += 1
-        self._passes = passes.Passes(self._pr)
+        self._passes = passes.Passes(self._pr, max_anisotropy=1.0 if self._real is None else ANISOTROPY)
         self._ray_factor = None if self._lighting is None else effects.ray_length_factor(c)
 
     def _shade(self, albedo: np.ndarray, normals: np.ndarray, light: np.ndarray) -> np.ndarray:
@@ -211,16 +212,32 @@ class Renderer:
 
     # ------------------------------------------------------------------- scene
     def _vehicle_mesh(self, entry: _Vehicle) -> pyrender.Mesh:
-        heading = entry.heading_bin * HEADING_BIN_RAD
         # Light into the model frame: the model is rotated by -heading about Z in W.
-        light_model = shading.rotate_z(self._light_w, heading)
+        light_model = self._light_model(entry)
+        if entry.parts is not None:
+            return self._real.vehicle_mesh(entry.parts, light_model)
         colors = self._shade(entry.albedo, entry.normals, light_model)
-        return _flat_mesh(entry.triangles, colors, self._material)
+        return flat_mesh(entry.triangles, colors, self._material)
+
+    def _light_model(self, entry: _Vehicle) -> np.ndarray:
+        return shading.rotate_z(self._light_w, entry.heading_bin * HEADING_BIN_RAD)
+
+    def _set_shadow(self, entry: _Vehicle, pose: np.ndarray) -> None:
+        """Realistic look: (re)make ``entry``'s shadow node for its heading bin, at ``pose``."""
+        if entry.shadow_node is not None:
+            self._scene.remove_node(entry.shadow_node)
+            entry.shadow_node = None
+        mesh = self._real.vehicle_shadow(*entry.dims, entry.parts.height, self._light_model(entry))
+        if mesh is not None:
+            entry.shadow_node = _add_mesh(self._scene, mesh, pose=pose)
 
     def _sync_vehicles(self, vehicles: tuple[VehicleState, ...]) -> list[pyrender.Node]:
         present = {v.id for v in vehicles}
         for vid in [k for k in self._vehicles if k not in present]:
-            self._scene.remove_node(self._vehicles.pop(vid).node)
+            gone = self._vehicles.pop(vid)
+            self._scene.remove_node(gone.node)
+            if gone.shadow_node is not None:
+                self._scene.remove_node(gone.shadow_node)
         nodes = []
         for v in vehicles:
             dims = (v.length, v.width)
@@ -231,15 +248,26 @@ class Renderer:
             if entry is None or entry.dims != dims:
                 if entry is not None:
                     self._scene.remove_node(entry.node)
-                faces = meshes.vehicle_faces(v.length, v.width, meshes.vehicle_color(self._palette_seed, v.id))
-                entry = _Vehicle(None, dims, *faces, hbin)
+                    if entry.shadow_node is not None:
+                        self._scene.remove_node(entry.shadow_node)
+                color = meshes.vehicle_color(self._palette_seed, v.id)
+                if self._real is None:
+                    entry = _Vehicle(None, dims, *meshes.vehicle_faces(v.length, v.width, color), hbin)
+                else:
+                    parts = self._real.vehicle_parts(v.length, v.width, color, v.id)
+                    entry = _Vehicle(None, dims, parts.triangles, parts.normals, parts.albedo, hbin, parts)
+                    self._set_shadow(entry, pose)
                 entry.node = _add_mesh(self._scene, self._vehicle_mesh(entry), pose=pose)
                 self._vehicles[v.id] = entry
             else:
                 if entry.heading_bin != hbin:
                     entry.heading_bin = hbin
                     entry.node.mesh = self._vehicle_mesh(entry)
+                    if entry.parts is not None:
+                        self._set_shadow(entry, pose)
                 self._scene.set_pose(entry.node, pose)
+                if entry.shadow_node is not None:
+                    self._scene.set_pose(entry.shadow_node, pose)
             nodes.append(entry.node)
         return nodes
 
@@ -272,7 +300,10 @@ class Renderer:
         c = self.frame_camera
         vehicles = tuple(world.vehicles)
         nodes = self._sync_vehicles(vehicles)
-        self._scene.set_pose(self._cam_node, geometry.camera_pose_world(world.ego, c, self._profile, self._plan))
+        cam_pose = geometry.camera_pose_world(world.ego, c, self._profile, self._plan)
+        self._scene.set_pose(self._cam_node, cam_pose)
+        if self._real is not None:
+            self._real.follow_camera(self._scene, cam_pose)
         heights = np.array([vehicle_height(v.length, v.width) for v in vehicles])
         corners_cam = c.ego_to_cam(geometry.vehicle_corners_ego(vehicles, world.ego, c, heights, self._profile,
                                                                   self._plan))
@@ -294,11 +325,19 @@ class Renderer:
             self._passes.update(self._scene)
             bgr, depth = self._passes.colour(self._scene, c.width, c.height, want_depth=self._lighting is not None)
             seg_map = {n: _seg_colour(v.id + 1) for n, v, d in zip(nodes, vehicles, drawn) if d}
+            hidden_by_roadside = None
+            if seg_map and self._real is not None:
+                seg_map.update({n: _seg_colour(OCCLUDER_CODE) for n in self._real.occluder_nodes})
             if seg_map:
-                id_mask = self._passes.ids(self._scene, c.width, c.height, seg_map)[::-1].astype(np.int32) - 1
+                codes = self._passes.ids(self._scene, c.width, c.height, seg_map)[::-1]
+                if self._real is not None:
+                    roadside_px = codes == OCCLUDER_CODE
+                    hidden_by_roadside = visibility.boxes_touching(roadside_px, boxes)
+                    codes = np.where(roadside_px, 0, codes)
+                id_mask = codes.astype(np.int32) - 1
             else:
                 id_mask = np.full((c.height, c.width), -1, dtype=np.int32)
-            full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn)
+            full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn, also=hidden_by_roadside)
         if self._lighting is None:
             image = apply_sensor(bgr, self._noise_std, self._blur_px,
                                  self._seed, world.frame)
@@ -306,15 +345,21 @@ class Renderer:
             z = effects.linear_depth(depth, ZNEAR_M, ZFAR_M)
             image = effects.apply(bgr, z, id_mask, world, self.scenario,
                                   self._lighting, self._ray_factor)
+        if self._real is not None:
+            image = self._real.sensor(image, world.frame)
         return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else c)
 
-    def _full_pixels(self, id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=False) -> dict[int, float]:
-        """Unoccluded, unbounded pixel count of every vehicle visible in ``id_mask``."""
+    def _full_pixels(self, id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=False,
+                     also: np.ndarray | None = None) -> dict[int, float]:
+        """Unoccluded, unbounded pixel count of every vehicle visible in ``id_mask``; ``also``: (N,) bool,
+        vehicles to render unoccluded besides those the shortcut picks (e.g. hidden by the roadside)."""
         c = self.frame_camera
         counts = np.bincount((id_mask + 1).ravel())
         visible = np.flatnonzero(counts[1:]).tolist()
         index = {v.id: i for i, v in enumerate(vehicles)}
         need = visibility.needs_full_render(boxes, corners_cam, drawn, c.width, c.height)
+        if also is not None:
+            need = need | also
         full = {vid: float(counts[vid + 1]) for vid in visible}
         todo = [index[vid] for vid in visible if force or need[index[vid]]]
         try:

@@ -18,9 +18,15 @@ With a horizontal plan (:mod:`harness.world.road_plan`) every rectangle is also 
 ``PLAN_STEP_M`` apart over each curve and each vertex ``(x, y)`` moved to ``plan.to_plane(x, y)``;
 the grass then reaches ``min(GRASS_EXTENT_M, 0.5 R_min)`` beside the road, so that on the inside
 of the tightest curve it stops before the centre of curvature, where the mapping would fold.
+
+:func:`road_surface_uv` gives the same triangles with texture coordinates from the road frame
+(:class:`Tiling`; the textures are :mod:`harness.render.textures`).
 """
 
 from __future__ import annotations
+
+import math
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
@@ -121,15 +127,85 @@ def rectangles_trimesh(rects: np.ndarray, color: tuple[int, int, int],
     return mesh
 
 
+def _road_pieces(road: Road, plan: RoadPlan | None) -> dict[str, np.ndarray]:
+    """The rectangles of :func:`road_trimeshes` per kind, with a plan cut at its curves."""
+    if plan is None:
+        return road_rectangles(road)
+    # every piece over a curve cut at every rectangle's ends too: no T-junction opens a crack
+    rects = road_rectangles(road, min(GRASS_EXTENT_M, 0.5 * plan.min_radius()))
+    curved = plan.curved_x(PLAN_STEP_M)
+    edges = np.unique(np.concatenate([r[:, :2].ravel() for r in rects.values()]))
+    cuts = np.r_[curved, edges[(edges > curved[0]) & (edges < curved[-1])]]
+    return {k: split_along(r, cuts) for k, r in rects.items()}
+
+
 def road_trimeshes(road: Road, profile: RoadProfile | None = None,
                    plan: RoadPlan | None = None) -> dict[str, trimesh.Trimesh]:
     """One merged W-frame mesh per surface kind (asphalt, marking, shoulder, grass)."""
-    if plan is None:
-        rects = road_rectangles(road)
-    else:   # every piece over a curve cut at every rectangle's ends too: no T-junction opens a crack
-        rects = road_rectangles(road, min(GRASS_EXTENT_M, 0.5 * plan.min_radius()))
-        curved = plan.curved_x(PLAN_STEP_M)
-        edges = np.unique(np.concatenate([r[:, :2].ravel() for r in rects.values()]))
-        cuts = np.r_[curved, edges[(edges > curved[0]) & (edges < curved[-1])]]
-        rects = {k: split_along(r, cuts) for k, r in rects.items()}
+    rects = _road_pieces(road, plan)
     return {k: rectangles_trimesh(r, SURFACE_COLORS[k], profile, plan) for k, r in rects.items() if len(r)}
+
+
+# ----------------------------------------------------------------- texture coordinates
+@dataclass(frozen=True)
+class Tiling:
+    """Texture tiles in the road frame (m): ``(along, across)`` per kind; the asphalt's across is
+    one lane (v = (y + lane_width / 2) / lane_width, integer at lane boundaries). Lane i's asphalt
+    runs shifted along the road by :func:`lane_shift_m` (a multiple of ``asphalt_shift_m`` when > 0)
+    and, in odd lanes, mirrored along the road: ``u = +-(x + shift) / asphalt_m``; both keep seams
+    at multiples of ``asphalt_shift_m`` straight across the road while a lane's patches stand
+    elsewhere than its neighbour's."""
+
+    asphalt_m: float = 16.0
+    asphalt_shift_m: float = 0.0
+    marking_m: tuple[float, float] = (4.0, 0.5)
+    shoulder_m: tuple[float, float] = (8.0, 4.0)
+    grass_m: tuple[float, float] = (16.0, 4.0)
+
+
+def lane_shift_m(lane: np.ndarray, tiling: Tiling) -> np.ndarray:
+    """Along-road shift (m, in [0, asphalt_m)) of lane ``lane``'s asphalt texture: the golden-ratio
+    sequence of the tile, rounded to whole ``asphalt_shift_m`` (seams stay straight across); lane 0: 0."""
+    tile, q = tiling.asphalt_m, tiling.asphalt_shift_m
+    shift = (np.asarray(lane, float) * (math.sqrt(5) - 1) / 2) % 1.0 * tile
+    if q > 0:
+        shift = np.round(shift / q) * q
+    return shift % tile
+
+
+def _rect_uv(rects: np.ndarray, kind: str, road: Road, tiling: Tiling) -> np.ndarray:
+    """(R, 4, 2) texture coordinates of the corners of road-frame rectangles in
+    :func:`rectangles_trimesh`'s corner order, from road-frame x, y."""
+    x0, x1, y0, y1 = rects.T
+    xs = np.stack([x0, x1, x1, x0], axis=1)
+    ys = np.stack([y1, y1, y0, y0], axis=1)
+    if kind == "asphalt":
+        lw = road.lane_width_m
+        lane = np.clip(np.floor((y0 + y1) / (2 * lw) + 0.5), 0, road.lanes - 1)
+        sign = np.where(lane % 2 == 1, -1.0, 1.0)[:, None]
+        u = sign * (xs + lane_shift_m(lane, tiling)[:, None]) / tiling.asphalt_m
+        v = (ys + lw / 2) / lw
+    else:
+        along, across = getattr(tiling, f"{kind}_m")
+        u, v = xs / along, ys / across
+    return np.stack([u, v], axis=-1)
+
+
+def road_surface_uv(road: Road, profile: RoadProfile | None = None, plan: RoadPlan | None = None,
+                    tiling: Tiling = Tiling()) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per surface kind: the W-frame triangles (F, 3, 3) of :func:`road_trimeshes` (the same
+    triangles in the same order) and their per-vertex texture coordinates (F, 3, 2), taken from
+    the road-frame coordinates before the plan's mapping, so textures run along the road."""
+    out = {}
+    for kind, rects in _road_pieces(road, plan).items():
+        if not len(rects):
+            continue
+        if profile is not None:                                # the cuts rectangles_trimesh makes
+            rects = split_along(rects, profile.curved_x(PROFILE_STEP_M))
+        if plan is not None:
+            rects = split_along(rects, plan.curved_x(PLAN_STEP_M))
+        tm = rectangles_trimesh(rects, SURFACE_COLORS[kind], profile, plan)
+        corner_uv = _rect_uv(rects, kind, road, tiling)
+        uv = np.concatenate([corner_uv[:, [0, 1, 2]], corner_uv[:, [0, 2, 3]]], axis=0)
+        out[kind] = (tm.vertices[tm.faces], uv)
+    return out

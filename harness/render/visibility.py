@@ -72,6 +72,24 @@ def needs_full_render(boxes: np.ndarray, corners_cam: np.ndarray, drawn: np.ndar
     return ~inside | can_hide.any(axis=1)
 
 
+def boxes_touching(mask: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """(N,) bool: projected boxes ``[x0, y0, x1, y1]`` (px, pixel centres at integers) whose pixels
+    (clipped to the image) hold any True of the (H, W) ``mask``; through an integral image."""
+    h, w = mask.shape
+    if not len(boxes) or not mask.any():
+        return np.zeros(len(boxes), dtype=bool)
+    ii = np.zeros((h + 1, w + 1), dtype=np.int64)
+    ii[1:, 1:] = mask.cumsum(0).cumsum(1)
+    b = np.nan_to_num(np.asarray(boxes, dtype=float), nan=0.0, posinf=1e9, neginf=-1e9)
+    x0 = np.clip(np.floor(b[:, 0] + 0.5), 0, w).astype(int)
+    y0 = np.clip(np.floor(b[:, 1] + 0.5), 0, h).astype(int)
+    x1 = np.clip(np.floor(b[:, 2] + 0.5) + 1, 0, w).astype(int)
+    y1 = np.clip(np.floor(b[:, 3] + 0.5) + 1, 0, h).astype(int)
+    ok = (x1 > x0) & (y1 > y0)
+    total = ii[y1, x1] - ii[y0, x1] - ii[y1, x0] + ii[y0, x0]
+    return ok & (total > 0)
+
+
 def full_window(box: np.ndarray, width: int, height: int, max_pixels: int) -> Window | None:
     """The sub-window around one projected box, clipped to the virtual canvas
     [-width, 2 width) x [-height, 2 height); None when it is empty."""

@@ -260,6 +260,12 @@ class Render(_Model):
     light_intensity: float = Field(3.0, gt=0, le=20)
     noise_std: float = Field(0.0, ge=0, le=50, description="Gaussian sensor noise, 8-bit levels")
     blur_px: float = Field(0.0, ge=0, le=10, description="Gaussian blur sigma, pixels")
+    look: Literal["simple", "realistic"] = Field("simple", description=(
+        "simple: flat-shaded boxes under a uniform sky; realistic: textured road, roadside, sky, shadows, "
+        "sensor model, drawn from look_family by look_seed (harness.render.look)"))
+    look_family: Literal["train", "heldout"] = Field("train", description=(
+        "the randomisation family of a realistic look: train, or the disjoint held-out one"))
+    look_seed: Seed | None = Field(None, description="seed of the realistic look; null: the scenario's seed")
 
     @model_validator(mode="after")
     def _light(self) -> "Render":
@@ -316,6 +322,9 @@ class Scenario(_Model):
     def _consistent(self) -> "Scenario":
         if self.ego.lane >= self.road.lanes:
             raise ValueError(f"ego.lane {self.ego.lane} does not exist on a {self.road.lanes}-lane road")
+        if self.render.look == "realistic" and self.conditions is not None and self.conditions.time_of_day != "day":
+            raise ValueError(f"render.look realistic is a daylight look; conditions.time_of_day "
+                             f"{self.conditions.time_of_day!r} needs render.look simple")
         if self.camera_motion is not None:
             self.camera_motion.check(self.camera.model(), self.fps)
         if self.traffic.warmup_s and self.events:

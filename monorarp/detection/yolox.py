@@ -10,9 +10,11 @@ Decoding (the project's): centre ``(p + cell) * stride``, size ``exp(p) * stride
 convention: the canvas spans [0, W]); score = objectness x best class probability; a box is kept when
 its best class is a vehicle of :data:`COCO_VEHICLES` and its score reaches the threshold; then
 class-agnostic NMS (a COCO car and truck box on one vehicle is one vehicle). Boxes come back in the
-source image's continuous pixel convention (:mod:`monorarp.core.types`). An optional second pass
-(``foveate``) runs the net on a crop near the horizon at up to native resolution
-(:mod:`monorarp.detection.fovea`) for small far vehicles.
+source image's continuous pixel convention (:mod:`monorarp.core.types`). A wide frame (KITTI's
+1242x375) is seen as two overlapping halves stacked in the canvas (``mosaic``,
+:mod:`monorarp.detection.mosaic`: scale 0.539 instead of the letterbox's 0.335, same one run); an
+optional second pass (``foveate``) runs the net on a crop near the horizon at up to native
+resolution (:mod:`monorarp.detection.fovea`) for small far vehicles.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from monorarp.core.camera import CameraModel
 from monorarp.core.types import Detection
 from monorarp.detection.fovea import Fovea, FoveaPass, merge
 from monorarp.detection.letterbox import Letterbox
+from monorarp.detection.mosaic import Mosaic, join
 from monorarp.detection.onnx_runtime import ModelError, expect_image_input, open_session, outputs
 from monorarp.detection.second_pass import helper_pool
 
@@ -116,6 +119,11 @@ class YoloxDetector(FoveaPass):
     centre without a camera) at ``fovea_zoom`` x the full view's scale, capped at native resolution, merged
     with :func:`monorarp.detection.fovea.merge` (``fovea_below``, ``fovea_dup_iou``, ``fovea_margin_px``,
     ``fovea_max_height`` as there; plain union). ``parallel_passes``: the fovea pass on a helper thread.
+    ``mosaic`` (default on): the full view of a frame wide enough to gain (:meth:`Mosaic.plan`: at least
+    1.2 x the letterbox's scale; KITTI, not 16:9) is its two halves stacked in the canvas
+    (``mosaic_gap_px`` grey rows between them; boxes within ``mosaic_margin_px`` canvas px of a tile's
+    inner side are cut, :func:`monorarp.detection.mosaic.join`): on the KITTI development frames Car
+    AP_R40 moderate 0.858 -> 0.910 at IoU 0.5, 0.662 -> 0.705 at IoU 0.7 with the fovea, for no extra run.
     """
 
     uses_camera = True   # the registry passes the run's camera (it places the fovea)
@@ -125,6 +133,7 @@ class YoloxDetector(FoveaPass):
                  intra_op_num_threads: int = 1, camera: CameraModel | dict | None = None, foveate: bool = True,
                  fovea_zoom: float = 4.0, fovea_below: float = 0.25, fovea_dup_iou: float = 0.3,
                  fovea_margin_px: float = 2.0, fovea_max_height: float = 0.35, parallel_passes: bool = True,
+                 mosaic: bool = True, mosaic_gap_px: int = 12, mosaic_margin_px: float = 8.0,
                  **_ignored) -> None:
         self.path = Path(model_path) if model_path is not None else DEFAULT_MODEL
         self.session = open_session(self.path, intra_op_num_threads)
@@ -137,7 +146,7 @@ class YoloxDetector(FoveaPass):
         for name, v in (("score_threshold", score_threshold), ("nms_iou", nms_iou)):
             if not 0 <= float(v) <= 1:
                 raise ValueError(f"{name} must be in [0, 1], got {v}")
-        for name, v in (("foveate", foveate), ("parallel_passes", parallel_passes)):
+        for name, v in (("foveate", foveate), ("parallel_passes", parallel_passes), ("mosaic", mosaic)):
             if not isinstance(v, bool):
                 raise ValueError(f"{name} must be true or false, got {v!r}")
         self.score_threshold, self.nms_iou = float(score_threshold), float(nms_iou)
@@ -148,6 +157,12 @@ class YoloxDetector(FoveaPass):
         self.fovea_zoom, self.fovea_below = float(fovea_zoom), float(fovea_below)
         self.fovea_dup_iou, self.fovea_margin_px = float(fovea_dup_iou), float(fovea_margin_px)
         self.fovea_max_height = float(fovea_max_height)
+        self.mosaic = mosaic
+        if not 0 <= int(mosaic_gap_px) < self.input_h // 2 or not 0 <= float(mosaic_margin_px) < self.input_w / 2:
+            raise ValueError(f"mosaic_gap_px must be in [0, {self.input_h // 2}) and mosaic_margin_px in "
+                             f"[0, {self.input_w / 2:g}), got {mosaic_gap_px} and {mosaic_margin_px}")
+        self.mosaic_gap_px, self.mosaic_margin_px = int(mosaic_gap_px), float(mosaic_margin_px)
+        self._mosaic: tuple[tuple[int, int], Mosaic | None] | None = None
         self._lb: Letterbox | None = None
         self._fovea: tuple[tuple[int, int], Fovea | None, Letterbox | None] | None = None
 
@@ -156,19 +171,46 @@ class YoloxDetector(FoveaPass):
         self.camera = camera
         self._fovea = None
 
+    def run_net(self, canvas_bgr: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The net on one input-sized BGR canvas: :func:`decode`'s (boxes in canvas px, edge convention;
+        scores; COCO classes), no NMS."""
+        raw = self.session.run([self.output_name], {self.input_name: to_blob(canvas_bgr)})[0]
+        return decode(raw[0], self.input_w, self.input_h, self.score_threshold, self.class_map)
+
     def pass_arrays(self, image: np.ndarray, letterbox: Letterbox | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One pass of the net over ``image`` (BGR uint8): (boxes (K, 4) in its continuous pixels, unclipped;
-        scores (K,); COCO classes (K,)), after NMS, by descending score."""
+        """One pass of the net over ``image`` (BGR uint8) letterboxed: (boxes (K, 4) in its continuous pixels,
+        unclipped; scores (K,); COCO classes (K,)), after NMS, by descending score."""
         h, w = image.shape[:2]
         if letterbox is None:
             if self._lb is None or (self._lb.src_w, self._lb.src_h) != (w, h):
                 self._lb = Letterbox.top_left(w, h, self.input_w, self.input_h)
             letterbox = self._lb
-        raw = self.session.run([self.output_name], {self.input_name: to_blob(letterbox.apply(image, PAD_VALUE, cv2.INTER_LINEAR))})[0]
-        boxes, scores, cls = decode(raw[0], self.input_w, self.input_h, self.score_threshold, self.class_map)
+        boxes, scores, cls = self.run_net(letterbox.apply(image, PAD_VALUE, cv2.INTER_LINEAR))
         keep = nms(boxes, scores, self.nms_iou)[:self.max_detections]
         # edge convention (canvas spans [0, W]) -> pixel centres, then undo the letterbox
         return letterbox.to_src(boxes[keep] - 0.5, clip=False), scores[keep], cls[keep]
+
+    def mosaic_plan(self, w: int, h: int) -> Mosaic | None:
+        """The full view's mosaic for a ``w`` x ``h`` frame (None: letterboxed), cached per size."""
+        if self._mosaic is None or self._mosaic[0] != (w, h):
+            plan = Mosaic.plan(w, h, self.input_w, self.input_h, self.mosaic_gap_px) if self.mosaic else None
+            self._mosaic = ((w, h), plan)
+        return self._mosaic[1]
+
+    def full_view_arrays(self, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The full view's pass: (boxes (K, 4) source px, unclipped; scores (K,); COCO classes (K,)) by
+        descending score; through the mosaic where it gains (each tile's own NMS, :func:`join`, then NMS)."""
+        mos = self.mosaic_plan(image.shape[1], image.shape[0])
+        if mos is None:
+            return self.pass_arrays(image)
+        boxes, scores, cls = self.run_net(mos.apply(image, PAD_VALUE, cv2.INTER_LINEAR))
+        src, tile, cut = mos.to_src(boxes, self.mosaic_margin_px)
+        keep = np.concatenate([np.flatnonzero(tile == t)[nms(src[tile == t], scores[tile == t], self.nms_iou)]
+                               for t in (0, 1)])
+        joined, idx = join(src[keep], scores[keep], tile[keep], cut[keep])
+        idx = keep[idx]
+        order = nms(joined, scores[idx], self.nms_iou)[:self.max_detections]
+        return joined[order], scores[idx][order], cls[idx][order]
 
     def fovea_letterbox(self, w: int, h: int) -> Letterbox:
         """How the net sees a ``w`` x ``h`` fovea crop."""
@@ -180,7 +222,7 @@ class YoloxDetector(FoveaPass):
         second = None
         if fov is not None and self.parallel_passes:
             second = helper_pool().submit(self.pass_arrays, fov.cut(image), flb)
-        boxes, scores, cls = self.pass_arrays(image)
+        boxes, scores, cls = self.full_view_arrays(image)
         if fov is None:
             return boxes, scores, cls
         fb, fs, fc = second.result() if second is not None else self.pass_arrays(fov.cut(image), flb)
