@@ -71,3 +71,14 @@ def test_shadow_alpha_darkens_to_the_shaded_value():
     lit_srgb, shade_srgb = (amb + direct) ** (1 / 2.2), (amb + 0.2 * direct) ** (1 / 2.2)
     assert (1 - a) * lit_srgb == pytest.approx(shade_srgb)
     assert shadows.shadow_alpha(amb, inten, e, 0.0) == pytest.approx(0.0)
+
+
+def test_fleet_colours_follow_the_fleet_shares():
+    from harness.render.realistic import FLEET_PAINTS, FLEET_SHARES, fleet_color
+
+    colours = np.array([fleet_color(3, i) for i in range(3000)], dtype=float)
+    nearest = np.argmin(((colours[:, None, :] - FLEET_PAINTS[None]) ** 2).sum(-1), axis=1)
+    share = np.bincount(nearest, minlength=len(FLEET_PAINTS)) / len(colours)
+    expected = FLEET_SHARES / FLEET_SHARES.sum()
+    assert np.abs(share - expected).max() < 0.025          # 3000 draws: binomial sd <= 0.008
+    assert fleet_color(3, 17) == fleet_color(3, 17)

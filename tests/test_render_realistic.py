@@ -141,3 +141,18 @@ def test_dome_follows_the_camera_and_far_cells_are_not_drawn(renderer):
             assert not node.mesh.is_visible
     assert any(n.mesh.is_visible for n, _ in real._cells) or not real._cells
     assert isinstance(real.dome_node.mesh, pyrender.Mesh)
+
+
+def test_far_vehicles_use_the_simple_mesh_with_hysteresis():
+    near, far = (VehicleState(1, 130.0, LANE_W, 0.0, 20.0, 20.0, 0.0, 1, 4.6, 1.9),
+                 VehicleState(1, 190.0, LANE_W, 0.0, 20.0, 20.0, 0.0, 1, 4.6, 1.9))
+    between = VehicleState(1, 160.5, LANE_W, 0.0, 20.0, 20.0, 0.0, 1, 4.6, 1.9)     # 60 m from the camera
+    with Renderer(_scenario()) as r:
+        tris = []
+        for v in (near, between, far, between, near):
+            frame = r.render(_world((v,)))
+            tris.append(len(r._vehicles[1].triangles))
+            assert (frame.id_mask == 1).any()
+    detailed, simple = tris[0], tris[2]
+    assert simple < detailed / 3
+    assert tris == [detailed, detailed, simple, simple, detailed]     # 60 m keeps whichever it had

@@ -480,6 +480,17 @@ def _wrap_light(parts: _Parts, side: int, facing: int, x_face: float, y_face: fl
     parts.add(_hull_tris(pts), colour, LIGHT_MAT)
 
 
+#: Car (not van) body proportions (m): ``nose``/``tail`` how far the belt-line edge of the bonnet/boot lies behind
+#: the front/rear face (a rounded nose and boot), ``belt_in`` the shoulder's inset at the belt, ``glass_in`` the
+#: glass's inset from the body side at the belt, ``tumble`` how far the side glass leans in up to ``roof_round``
+#: below the roof, ``roof_in`` the roof's inset from the body side, ``roof_rx``/``roof_fx`` its rear/front
+#: chamfers, ``screen_run`` the windscreen's run from its base to its top.
+_CAR_BODY = dict(nose=0.55, tail=0.15, belt_in=0.05, glass_in=0.11, tumble=0.22, roof_in=0.33, roof_round=0.07,
+                 roof_rx=0.12, roof_fx=0.12, screen_run=0.80)
+#: Per car style: (rear glass base, rear glass top) ahead of the rear face (m): the rear window's rake.
+_CAR_REAR = {"hatch": (0.18, 1.00), "sedan": (0.75, 1.45), "estate": (0.15, 0.62)}
+
+
 def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generator) -> _Parts:
     """A detailed car or van (the shape of :func:`vehicle_layout`): see :func:`vehicle_faces_detailed`."""
     L = vehicle_layout(length, width)
@@ -494,9 +505,16 @@ def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generato
     # lower body: bumper (rear face at -hl), a 3 cm step to the tailgate, shoulder
     levels = [z0, z_bt, z_st, z_sh, belt]
     rings = [_octagon(z0, -hl, hl - 0.015, hb, c_r, c_f), _octagon(z_bt, -hl, hl - 0.015, hb, c_r, c_f),
-             _octagon(z_st, -hl + 0.03, hl - 0.03, hb, c_r, c_f), _octagon(z_sh, -hl + 0.03, hl - 0.03, hb, c_r, c_f),
-             _octagon(belt, -hl + (0.03 if van else 0.07), hl - (0.04 if van else 0.12), hb - (0.01 if van else 0.04),
-                      c_r, c_f)]
+             _octagon(z_st, -hl + 0.03, hl - 0.03, hb, c_r, c_f), _octagon(z_sh, -hl + 0.03, hl - 0.03, hb, c_r, c_f)]
+    if van:
+        rings.append(_octagon(belt, -hl + 0.03, hl - 0.04, hb - 0.01, c_r, c_f))
+    else:   # rounded nose and boot: the bonnet falls towards the front, the deck's rear edge is chamfered
+        p = _CAR_BODY
+        z_mid = 0.5 * (z_sh + belt)
+        levels.insert(-1, z_mid)
+        rings += [_octagon(z_mid, -hl + 0.03 + 0.4 * p["tail"], hl - 0.03 - 0.3 * p["nose"], hb - 0.4 * p["belt_in"],
+                           c_r, c_f),
+                  _octagon(belt, -hl + 0.03 + p["tail"], hl - 0.03 - p["nose"], hb - p["belt_in"], c_r, c_f)]
     levels, rings = _with_levels(levels, rings, _dirt_levels(z0, dirt))
 
     def body_colour(k, i):
@@ -514,20 +532,21 @@ def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generato
         rb, rt, fb, ft = -hl + 0.03, -hl + 0.09, hl - 0.80, hl - 1.50
         y0, y1, y2, z1 = hb - 0.01, hb - 0.05, hb - 0.10, H - 0.06
     else:
+        p = _CAR_BODY
         fb = hl - b_len
-        ft = fb - 0.62
-        rb, rt = {"hatch": (-hl + 0.12, -hl + 0.60), "sedan": (-hl + 0.80, -hl + 1.35),
-                  "estate": (-hl + 0.10, -hl + 0.26)}[style]
-        y0, y1, y2, z1 = hb - 0.05, hb - 0.19, hb - 0.25, H - 0.05
+        ft = fb - p["screen_run"]
+        rb, rt = (-hl + u for u in _CAR_REAR[style])
+        y0, y1, y2, z1 = hb - p["glass_in"], hb - p["glass_in"] - p["tumble"], hb - p["roof_in"], H - p["roof_round"]
 
     def rect(z, xr, xf, y):
         return np.array([(xr, -y, z), (xf, -y, z), (xf, y, z), (xr, y, z)])
 
-    cab = [rect(belt, rb, fb, y0), rect(z1, rt, ft, y1), rect(H, rt + 0.05, ft - 0.07, y2)]
+    rx, fx = (0.05, 0.07) if van else (_CAR_BODY["roof_rx"], _CAR_BODY["roof_fx"])
+    cab = [rect(belt, rb, fb, y0), rect(z1, rt, ft, y1), rect(H, rt + rx, ft - fx, y2)]
     side_br, side_glass, side_t = {
-        "hatch": ([0, .25, .52, .57, .93, 1], {1, 3}, [0, .07, .94, 1]),
-        "sedan": ([0, .20, .51, .56, .93, 1], {1, 3}, [0, .07, .94, 1]),
-        "estate": ([0, .05, .22, .26, .52, .57, .93, 1], {1, 3, 5}, [0, .07, .94, 1]),
+        "hatch": ([0, .30, .54, .59, .93, 1], {1, 3}, [0, .09, .92, 1]),
+        "sedan": ([0, .22, .52, .57, .93, 1], {1, 3}, [0, .09, .92, 1]),
+        "estate": ([0, .09, .25, .29, .53, .58, .93, 1], {1, 3, 5}, [0, .09, .92, 1]),
         "van": ([0, .74, .77, .95, 1], {2}, [0, .06, .62, 1])}[style]
     a = {"hatch": 0.11, "sedan": 0.12, "estate": 0.085, "van": 0.05}[style]
     if van:

@@ -39,6 +39,11 @@ CELL_M = 100.0
 draws only the cells in front of the camera and within :data:`DRAW_DISTANCE_M` (llvmpipe pays per triangle)."""
 DOME_AZIMUTHS, DOME_RINGS = 72, 16     # the sky dome's tessellation: smooth gradient, clouds of a few degrees
 DRAW_DISTANCE_M = 900.0
+LOD_FAR_M, LOD_NEAR_M = 65.0, 55.0
+"""A detailed vehicle farther than ``LOD_FAR_M`` from the camera is drawn with the simple look's mesh (about a
+tenth of the triangles) in its realistic paint and materials, and detailed again nearer than ``LOD_NEAR_M``
+(hysteresis: no flicker at the boundary). At 60 m a car is about 20 px wide at a focal length of 640 px; the
+id mask is always that of the mesh drawn, so the truth stays exact."""
 """Occluder and shadow cells farther than this (m, cell centre) are not drawn; beyond it a 10 m tree is under
 10 px tall at a focal length of 900 px. The far set (buildings, hills) is always drawn."""
 
@@ -60,6 +65,33 @@ def face_normals(triangles: np.ndarray) -> np.ndarray:
     """(F, 3) unit normals of counter-clockwise (F, 3, 3) triangles."""
     n = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+
+#: Paint of the realistic look's vehicles (sRGB) with the share of each in the European fleet (white,
+#: black, grey and silver dominate; yellow, orange and green are 1-2 % each): a flat palette makes one
+#: car in seven yellow or orange, colours a COCO-trained detector associates with buses and taxis.
+FLEET_PAINTS = np.array([
+    [228, 228, 225], [22, 22, 25], [105, 108, 112], [165, 168, 172], [150, 22, 28], [28, 55, 120],
+    [18, 28, 55], [120, 100, 80], [30, 70, 45], [215, 170, 30], [200, 90, 25], [95, 20, 32]], dtype=float)
+FLEET_SHARES = np.array([0.24, 0.19, 0.16, 0.12, 0.08, 0.07, 0.04, 0.03, 0.02, 0.015, 0.015, 0.02])
+
+
+def fleet_color(look_seed: int, vehicle_id: int) -> tuple[int, int, int]:
+    """A vehicle's paint drawn from :data:`FLEET_PAINTS` by fleet share (deterministic per look and id)."""
+    rng = np.random.default_rng([int(look_seed) & 0xFFFFFFFF, int(vehicle_id) & 0xFFFFFFFF, 0xC010])
+    base = FLEET_PAINTS[rng.choice(len(FLEET_PAINTS), p=FLEET_SHARES / FLEET_SHARES.sum())]
+    rgb = np.clip(base * rng.uniform(0.92, 1.08) + rng.normal(0.0, 5.0, 3), 0, 255)
+    return tuple(int(c) for c in np.round(rgb))
+
+
+def simple_materials(albedo: np.ndarray) -> np.ndarray:
+    """(F,) material tags of a simple-look mesh, from its fixed part colours (paint: everything else)."""
+    tags = np.full(len(albedo), int(materials.Material.PAINT), dtype=np.int8)
+    for colour, tag in ((meshes.GLASS, materials.Material.GLASS), (meshes.TYRE, materials.Material.TYRE),
+                        (meshes.RIM, materials.Material.RIM), (meshes.TAIL_LIGHT, materials.Material.LIGHT),
+                        (meshes.TRIM, materials.Material.TRIM)):
+        tags[np.all(albedo == np.asarray(colour, dtype=float), axis=1)] = int(tag)
+    return tags
 
 
 def _cells(triangles: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -140,9 +172,10 @@ class RealisticScene:
         return tuple(c / 255.0 for c in self.look.sky.horizon_srgb)
 
     # ------------------------------------------------------------------ vehicles
-    def vehicle_parts(self, length: float, width: float, color: tuple[int, int, int], vehicle_id: int) -> VehicleParts:
+    def vehicle_parts(self, length: float, width: float, vehicle_id: int) -> VehicleParts:
+        """The detailed vehicle of ``vehicle_id`` (body style by id, paint by fleet share)."""
         tri, normals, albedo, material = meshes.vehicle_faces_detailed(
-            length, width, color, self.look.vehicle.dirt, seed=int(vehicle_id))
+            length, width, fleet_color(self.look.seed, vehicle_id), self.look.vehicle.dirt, seed=int(vehicle_id))
         return VehicleParts(tri, normals, albedo, material, vehicle_height(length, width))
 
     def vehicle_mesh(self, parts: VehicleParts, light_model: np.ndarray) -> pyrender.Mesh:
@@ -157,6 +190,11 @@ class RealisticScene:
         """The vehicle's cast shadow (model frame), or None when the sun casts none."""
         tri = shadows.cast_shadow(length, width, height, light_model)
         return self._shadow_mesh(tri) if len(tri) else None
+
+    def far_parts(self, length: float, width: float, vehicle_id: int) -> VehicleParts:
+        """The simple look's mesh of ``vehicle_id`` with the realistic paint and material tags (the far LOD)."""
+        tri, normals, albedo = meshes.vehicle_faces(length, width, fleet_color(self.look.seed, vehicle_id))
+        return VehicleParts(tri, normals, albedo, simple_materials(albedo), vehicle_height(length, width))
 
     # -------------------------------------------------------------------- frames
     def follow_camera(self, scene: pyrender.Scene, camera_pose: np.ndarray) -> None:

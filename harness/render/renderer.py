@@ -38,6 +38,7 @@ import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
 
 from harness.render import effects, meshes, passes, road, shading, visibility  # noqa: E402
+from harness.render import realistic  # noqa: E402
 from harness.render.realistic import OCCLUDER_CODE, RealisticScene, VehicleParts, flat_mesh  # noqa: E402
 from harness.world import geometry  # noqa: E402
 from harness.world.vehicles import vehicle_height  # noqa: E402
@@ -139,6 +140,7 @@ class _Vehicle:
     heading_bin: int
     parts: VehicleParts | None = None          # realistic look: the detailed mesh
     shadow_node: pyrender.Node | None = None   # realistic look: its sun shadow
+    far: bool = False                          # realistic look: drawn with the far level of detail
 
 
 class Renderer:
@@ -250,11 +252,11 @@ class Renderer:
                     self._scene.remove_node(entry.node)
                     if entry.shadow_node is not None:
                         self._scene.remove_node(entry.shadow_node)
-                color = meshes.vehicle_color(self._palette_seed, v.id)
                 if self._real is None:
+                    color = meshes.vehicle_color(self._palette_seed, v.id)
                     entry = _Vehicle(None, dims, *meshes.vehicle_faces(v.length, v.width, color), hbin)
                 else:
-                    parts = self._real.vehicle_parts(v.length, v.width, color, v.id)
+                    parts = self._real.vehicle_parts(v.length, v.width, v.id)
                     entry = _Vehicle(None, dims, parts.triangles, parts.normals, parts.albedo, hbin, parts)
                     self._set_shadow(entry, pose)
                 entry.node = _add_mesh(self._scene, self._vehicle_mesh(entry), pose=pose)
@@ -270,6 +272,19 @@ class Renderer:
                     self._scene.set_pose(entry.shadow_node, pose)
             nodes.append(entry.node)
         return nodes
+
+    def _level_of_detail(self, vehicles: tuple[VehicleState, ...], eye: np.ndarray) -> None:
+        """Realistic look: swap each vehicle's mesh between its detailed and far forms by its distance."""
+        for v in vehicles:
+            entry = self._vehicles[v.id]
+            d = float(np.linalg.norm(self._scene.get_pose(entry.node)[:3, 3] - eye))
+            far = d > realistic.LOD_FAR_M if not entry.far else d >= realistic.LOD_NEAR_M
+            if far != entry.far:
+                entry.far = far
+                make = self._real.far_parts if far else self._real.vehicle_parts
+                entry.parts = make(v.length, v.width, v.id)
+                entry.triangles, entry.normals, entry.albedo = entry.parts.triangles, entry.parts.normals, entry.parts.albedo
+                entry.node.mesh = self._vehicle_mesh(entry)
 
     def _set_intrinsics(self, fx: float, fy: float, cx: float, cy: float) -> None:
         self._cam.fx, self._cam.fy = fx, fy
@@ -304,6 +319,7 @@ class Renderer:
         self._scene.set_pose(self._cam_node, cam_pose)
         if self._real is not None:
             self._real.follow_camera(self._scene, cam_pose)
+            self._level_of_detail(vehicles, cam_pose[:3, 3])
         heights = np.array([vehicle_height(v.length, v.width) for v in vehicles])
         corners_cam = c.ego_to_cam(geometry.vehicle_corners_ego(vehicles, world.ego, c, heights, self._profile,
                                                                   self._plan))

@@ -418,18 +418,19 @@ _FOLIAGE = {"broadleaf": ((62, 92, 40), (14, 18, 10)), "conifer": ((38, 62, 40),
 _BARK = ((92, 78, 62), (16, 14, 12))
 
 
+def _both_sides(rng: np.random.Generator, lay: _Layout, density: float, *spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stations ``x`` along the road (``_xs_along``) on the left (+1) then the right (-1) side, and each one's side."""
+    xs = [_xs_along(rng, lay, density, *spacing) for _ in (+1, -1)]
+    return np.concatenate(xs), np.concatenate([np.full(len(x), side) for x, side in zip(xs, (+1, -1))])
+
+
 def _trees(ground: Ground, lay: _Layout, rng: np.random.Generator, look: RoadsideLook,
            right_min_d: float) -> list[_Batch]:
     """Trees of ``look.tree_form`` on both sides, ``tree_setback_m`` and more beyond the edge lines."""
     form = look.tree_form
     if form not in _FOLIAGE:
         raise ValueError(f"tree_form: unknown form {form!r}")
-    xs, sides = [], []
-    for side in (+1, -1):
-        x = _xs_along(rng, lay, look.tree_density, 3.0, 7.0)
-        xs.append(x)
-        sides.append(np.full(len(x), side))
-    x, side = np.concatenate(xs), np.concatenate(sides)
+    x, side = _both_sides(rng, lay, look.tree_density, 3.0, 7.0)
     n = len(x)
     if n == 0:
         return []
@@ -528,12 +529,7 @@ def _trees(ground: Ground, lay: _Layout, rng: np.random.Generator, look: Roadsid
 
 def _bushes(ground: Ground, lay: _Layout, rng: np.random.Generator, look: RoadsideLook,
             right_min_d: float) -> list[_Batch]:
-    xs, sides = [], []
-    for side in (+1, -1):
-        x = _xs_along(rng, lay, look.bush_density, 2.5, 4.0)
-        xs.append(x)
-        sides.append(np.full(len(x), side))
-    x, side = np.concatenate(xs), np.concatenate(sides)
+    x, side = _both_sides(rng, lay, look.bush_density, 2.5, 4.0)
     n = len(x)
     if n == 0:
         return []
