@@ -26,6 +26,7 @@ from monorarp.state.expansion import ExpansionFilter
 from monorarp.state.filters import DifferenceTracks, KalmanTracks
 from monorarp.state.geometry import border_flags, fragments, lateral_from_terms, measure_boxes, occluded, too_narrow
 from monorarp.state.ground_contact import contact_ground
+from monorarp.state.kind import TrackKinds
 from monorarp.state.measurement import (NearEdgeOffsets, border_cut_boxes, border_tolerance, distance_std, grade_gain,
                                         horizon_gain, near_limit_m, plausible_boxes)
 from monorarp.state.noise import MeasurementNoise, ProcessNoise, bias_variance, prior_variance
@@ -53,7 +54,9 @@ class StateEstimator:
     ``expansion_rate`` comes from the box width's filter (None where known no better than its prior) and
     ``registered_rate`` / ``registered_v_x`` from registering each vehicle's patch between frames (given
     the frame's ``image``). The registration in use is the ``registration`` attribute (None: off); a
-    replay of cached tracks may put a recorded one in its place.
+    replay of cached tracks may put a recorded one in its place. With ``size_prior`` each track's kind is voted
+    from its labels over time (``kind_memory_s``, :mod:`monorarp.state.kind`); a change of kind re-expresses its
+    filter instead of restarting it (:meth:`_kind_fused`).
     """
 
     uses_camera = True   # the registry passes the run's camera
@@ -88,6 +91,8 @@ class StateEstimator:
         self._profile = None          # this frame's measured road profile (a GroundReading's), None: flat ground
         self._ground_std: np.ndarray | None = None   # per box, the profile's one-sigma added to d_y_std (m)
         self._prior_std: np.ndarray | None = None    # per box, the size-prior fusion's one-sigma (m; NaN: none)
+        self._kinds = TrackKinds(c.kind_memory_s, c.kind_switch_share) \
+            if c.size_prior and c.kind_memory_s is not None else None     # per track, its kind for the size prior
         self.reset()
 
     def reset(self) -> None:
@@ -96,6 +101,8 @@ class StateEstimator:
         self._coast: dict[int, int] = {}           # per track: consecutive coasting frames
         self._measured: dict[int, float] = {}      # per track: frame time of its last distance reading (s)
         self._near_edge.reset()
+        if self._kinds is not None:
+            self._kinds.reset()
         self._expansion.reset()
         self._rate_window.reset()
         self._lateral_window.reset()
@@ -179,6 +186,43 @@ class StateEstimator:
         parts = {"ground": ground, "ground_std": g_std, "height": h, "height_std": h_std, "width": w, "width_std": w_std}
         return np.where(has, fused, d_y), np.where(has, std, np.nan), parts
 
+    def track_kind(self, track_id: int) -> str | None:
+        """The kind (lower case) the size prior uses for a track; None: no such track, or no per-track kind
+        (``size_prior`` off or ``kind_memory_s`` None: each box's label)."""
+        return None if self._kinds is None else self._kinds.kind.get(track_id)
+
+    def _kind_fused(self, usable: Sequence[Track], boxes: np.ndarray, d_y: np.ndarray, terms: np.ndarray,
+                    horizon_std_px: float, t: float) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """:meth:`size_fused` with each track's kind (:class:`~monorarp.state.kind.TrackKinds`,
+        voted at frame time ``t``, s) instead of its box's label. A track whose kind changes keeps its filter,
+        re-expressed under the new kind (:meth:`~monorarp.state.filters.KalmanTracks.rescale`, by the ratio of the
+        two kinds' fused distances of this box); where either is NaN (no distance this frame) the change waits."""
+        kinds, ids = self._kinds, [tr.id for tr in usable]
+        proposed = kinds.update(ids, [tr.label for tr in usable], [tr.score for tr in usable],
+                                [not tr.coasting for tr in usable], t)
+        current = [kinds.kind[i] for i in ids]
+        fused, std, parts = self.size_fused(current, boxes, d_y, horizon_std_px)
+        switch = np.array([p != q for p, q in zip(proposed, current)])
+        if not switch.any():
+            return fused, std, parts
+        known = self._filter.known(ids)
+        new, new_std, new_parts = self.size_fused([p if w else q for p, q, w in zip(proposed, current, switch)],
+                                                  boxes, d_y, horizon_std_px)
+        go = switch & (~known | (np.isfinite(fused) & np.isfinite(new) & (fused > 0) & (new > 0)))
+        if not (go == switch).all():
+            new, new_std, new_parts = self.size_fused([p if w else q for p, q, w in zip(proposed, current, go)],
+                                                      boxes, d_y, horizon_std_px)
+        shift = np.nan_to_num(terms[:, 0] * (new - fused))
+        for j in np.flatnonzero(go):
+            ratio = float(new[j] / fused[j]) if known[j] else 1.0
+            if not (math.isfinite(ratio) and ratio > 0):        # (the other kinds moved the ground fit)
+                new[j], new_std[j] = fused[j], std[j]
+                continue
+            kinds.commit(ids[j], proposed[j])
+            if known[j]:
+                self._filter.rescale(ids[j], ratio, float(shift[j]))
+        return new, new_std, new_parts
+
     def _fitted_ground(self, boxes: np.ndarray, d_y: np.ndarray, h: np.ndarray, h_std: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
         """Each box's ground distance (m) and its one-sigma on the frame's ground plane fitted to the other
@@ -259,6 +303,8 @@ class StateEstimator:
             self._filter.forget(tid)
             self._near_edge.forget(tid)
             self._measured.pop(tid, None)
+            if self._kinds is not None:
+                self._kinds.forget(tid)
         self._coast = {tr.id: self._coast.get(tr.id, 0) + 1 if tr.coasting else 0 for tr in tracks}
         usable = [tr for tr in tracks if self._coast[tr.id] <= c.max_coast_used]
         if usable and c.fragment_cover is not None:
@@ -272,7 +318,8 @@ class StateEstimator:
         d_y, terms = self._terms(ids, boxes)
         self._prior_std = None
         if c.size_prior:
-            d_y, self._prior_std, _ = self.size_fused([tr.label for tr in usable], boxes, d_y, horizon_std_px)
+            d_y, self._prior_std, _ = self._kind_fused(usable, boxes, d_y, terms, horizon_std_px, t) \
+                if self._kinds is not None else self.size_fused([tr.label for tr in usable], boxes, d_y, horizon_std_px)
         coasting = np.array([tr.coasting for tr in usable])
         known = self._filter.known(ids)
         # A new track needs both coordinates from its box; a known one is output in any case

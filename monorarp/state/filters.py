@@ -66,6 +66,12 @@ class DifferenceTracks(TrackHistory):
                 self.state[i], self.t[i] = zi, t
         return np.concatenate([z, v], axis=1)
 
+    def rescale(self, track_id: int, ratio: float, lateral_shift: float) -> None:
+        """Re-express a track's last state under a changed distance model: ``d_y`` times ``ratio``, ``d_x`` plus
+        ``lateral_shift`` (m) (:meth:`KalmanTracks.rescale`)."""
+        x, y = self.state[track_id]
+        self.state[track_id] = np.array([x + lateral_shift, y * ratio])
+
 
 def fuse_scale(x: np.ndarray, P: np.ndarray, scale: np.ndarray, scale_std: np.ndarray, dt: np.ndarray,
                usable: np.ndarray, gate_sigmas: float, inflation: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -120,6 +126,22 @@ class KalmanTracks(TrackHistory):
     def forget(self, track_id: int) -> None:
         super().forget(track_id)
         self.born.pop(track_id, None)
+
+    def rescale(self, track_id: int, ratio: float, lateral_shift: float) -> None:
+        """Re-express a track's filter under a changed distance model (a new vehicle kind for the size prior), at
+        its last update time and without a restart: the longitudinal distance, velocity and acceleration times
+        ``ratio`` (the new model's distance over the old one's on the same box; their covariance by ``ratio^2``),
+        so the time to contact ``d / v`` is kept; the lateral position plus ``lateral_shift`` (m, the lateral
+        reading's change with the distance), the lateral velocity kept. A linear map of the state: it commutes
+        with the prediction, so the next frame's innovation test judges the new model's reading as any other."""
+        x, P = self.state[track_id]
+        n, N = self.process.n, x.shape[1]
+        s = np.r_[np.full(n, ratio), np.ones(N - n)]          # the edge-error state (px) is kept
+        x, P = x.copy(), P.copy()
+        x[1] *= s
+        P[1] *= s[:, None] * s[None, :]
+        x[0, 0] += lateral_shift
+        self.state[track_id] = (x, P)
 
     def update(self, ids: Sequence[int], d_y: np.ndarray, terms: np.ndarray, coasting: np.ndarray,
                known: np.ndarray, ok: np.ndarray, t: float, camera: CameraModel, noise: MeasurementNoise,
