@@ -57,13 +57,15 @@ def metres_in(lo: float, hi: float) -> Callable[[str], float]:
 
 
 def _number_in(kind: type, lo: float, hi: float, unit: str, name: str) -> Callable[[str], Any]:
+    span = f"{lo}..{hi}" if kind is int else f"{lo:g}..{hi:g}"     # ints in full, not as 4.29497e+09
+
     def parse(text: str):
         try:
             n = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"must be {lo:g}..{hi:g}{unit}, got {_shown(text)}") from None
+            raise argparse.ArgumentTypeError(f"must be {span}{unit}, got {_shown(text)}") from None
         if not (math.isfinite(n) and lo <= n <= hi):
-            raise argparse.ArgumentTypeError(f"must be {lo:g}..{hi:g}{unit}, got {n}")
+            raise argparse.ArgumentTypeError(f"must be {span}{unit}, got {n}")
         return n
 
     parse.__name__ = name
