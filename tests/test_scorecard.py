@@ -351,3 +351,18 @@ def test_scorecard_progress_bar_is_named_after_the_command(monkeypatch):
     with pytest.raises(Stop):
         run_mod.run_scorecard("/nonexistent-out", run_mod.ScorecardOptions(), make=lambda *a, **k: Ex())
     assert seen == {"desc": "scorecard"}
+
+
+def test_scorecard_look_option_sets_every_trials_render_look():
+    """--look realistic reaches every run's scenario (each run's own seed draws its look: a family, not
+    one look) and changes nothing else of it."""
+    from harness.scorecard.run import ScorecardOptions, build_tasks
+
+    _, plain = build_tasks(ScorecardOptions(suites=("nhtsa",), trials=2))
+    _, real = build_tasks(ScorecardOptions(suites=("nhtsa",), trials=2, look={"look": "realistic"}))
+    assert {t.scenario["render"]["look"] for t in plain} == {"simple"}
+    assert {t.scenario["render"]["look"] for t in real} == {"realistic"}
+    assert [t.id for t in real] == [t.id for t in plain]
+    assert len({t.seed for t in real}) > 1
+    strip = lambda t: {**t.scenario, "render": {k: v for k, v in t.scenario["render"].items() if k != "look"}}
+    assert [strip(t) for t in real] == [strip(t) for t in plain]

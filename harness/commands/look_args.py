@@ -23,10 +23,15 @@ def add_look_arguments(p: argparse.ArgumentParser) -> None:
                         "else its seed)")
 
 
+def look_update(args: argparse.Namespace) -> dict:
+    """The ``render`` fields the look options set (empty when none was given)."""
+    return {k: v for k, v in (("look", args.look), ("look_family", args.look_family),
+                              ("look_seed", args.look_seed)) if v is not None}
+
+
 def apply_look(scenario: Scenario, args: argparse.Namespace) -> Scenario:
     """``scenario`` with the look options that were given (unchanged when none was)."""
-    update = {k: v for k, v in (("look", args.look), ("look_family", args.look_family),
-                                ("look_seed", args.look_seed)) if v is not None}
+    update = look_update(args)
     if not update:
         return scenario
     return scenario.model_copy(update={"render": scenario.render.model_copy(update=update)})

@@ -18,6 +18,7 @@ MAX_TRIALS = 1000          # --trials: a protocol file's own limit
 
 def register(sub: argparse._SubParsersAction) -> None:
     from harness.commands.executor_args import add_executor_arguments
+    from harness.commands.look_args import add_look_arguments
     from monorarp.app.options import add_pipeline_options
 
     p = sub.add_parser(
@@ -38,6 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_frames_option(p, help="cap on frames per run (default none)")
     add_out_option(p, required=True, help="output directory")
     add_executor_arguments(p)
+    add_look_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -62,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
 
     from harness.commands.detector_args import pipeline_config
     from harness.commands.executor_args import check_executor_arguments
+    from harness.commands.look_args import look_update
 
     check_executor_arguments(args)
     if args.warning_threshold is not None and not 0 < args.warning_threshold <= 10:
@@ -77,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
                             warning_kwargs={} if args.warning_threshold is None else
                             {"ttc_threshold_s": args.warning_threshold},
                             executor=args.executor, workers=args.workers, address=args.address,
-                            resume=args.resume, progress=not args.no_progress, run_timeout_s=args.run_timeout)
+                            resume=args.resume, progress=not args.no_progress, run_timeout_s=args.run_timeout,
+                            look=look_update(args))
     card = run_scorecard(args.out, opts)
     print(console_table(card))
     print(f"wrote {args.out}/scorecard.json, report.html")

@@ -60,6 +60,7 @@ class ScorecardOptions:
     resume: bool = False
     progress: bool = True
     run_timeout_s: float | None = None           # a run taking longer is ended and fails (see harness.sweep.pool)
+    look: dict = field(default_factory=dict)     # render.look / look_family / look_seed set on every trial
 
 
 def protocol_paths(opts: ScorecardOptions) -> list[Path]:
@@ -105,6 +106,9 @@ def build_tasks(opts: ScorecardOptions) -> tuple[list[Trial], list[RunTask]]:
     for trial in trials:
         try:
             scenario = parse_scenario(trial.scenario, trial.scenario_file).model_dump(mode="json")
+            if opts.look:
+                scenario["render"] |= opts.look
+                scenario = parse_scenario(scenario, trial.scenario_file).model_dump(mode="json")
         except ScenarioError as e:
             raise ProtocolError(f"{trial.scenario_file}: test {trial.test}: {e}") from None
         variant = variant_for(trial, opts)
