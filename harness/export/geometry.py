@@ -167,9 +167,11 @@ def levels(x: np.ndarray, thresholds: tuple[float, float]) -> np.ndarray:
     return np.searchsorted(np.asarray(thresholds), np.asarray(x, dtype=float), side="right").astype(int)
 
 
-def kitti_type(length: float, width: float) -> str:
-    """KITTI class of a vehicle of this footprint: ``Truck`` for the renderer's trucks, else ``Car``."""
-    from harness.world.vehicles import vehicle_layout
+def kitti_type(length: float, width: float, body: str | None = None) -> str:
+    """KITTI class of a vehicle (:func:`harness.world.vehicles.kitti_type`): without a body type ``Truck`` for the
+    renderer's trucks, else ``Car``; a fleet's body type by KITTI's convention (vans ``Van``, lorries and buses
+    ``Truck``, every car, SUV and pickup ``Car``)."""
+    from harness.world.vehicles import kitti_type as world_kitti_type
 
-    return "Truck" if vehicle_layout(float(length), float(width)).truck else "Car"
+    return world_kitti_type(float(length), float(width), body)
 

@@ -38,7 +38,7 @@ def label_fields(objects: Sequence[ObjectTruth], camera: CameraModel) -> list[di
     trunc_level = geo.levels(trunc, geo.TRUNCATION_LEVELS)
     out = []
     for k, o in enumerate(objects):
-        out.append({"id": o.id, "type": geo.kitti_type(o.length, o.width),
+        out.append({"id": o.id, "type": geo.kitti_type(o.length, o.width, o.body),
                     "truncated": float(trunc[k]), "truncated_level": int(trunc_level[k]),
                     "occluded": int(occ_level[k]), "alpha": float(box["alpha"][k]),
                     "box": [float(b) for b in o.box],

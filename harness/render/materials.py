@@ -19,7 +19,14 @@ the environment a face reflects: glossy paint ``gloss * (0.05 + 0.20 max(0, n_z)
 sides), rims and lamp covers less, matte surfaces, tyres and dirt none. ``E`` makes lamps look lit
 from inside (retro-reflection in daylight). :attr:`Material.SHADOW` (the dark ground under a vehicle)
 takes the sky term only: no sun, no ground bounce, no reflection. Output: sRGB 0..1 (gamma 1/2.2,
-clipped), as :func:`harness.render.shading.shade`. Upward faces of matte material under a grey sky
+clipped), as :func:`harness.render.shading.shade`.
+
+:attr:`Material.METALLIC` is metallic paint (aluminium flakes under the clear coat): its diffuse part is
+darker (``a * METALLIC_DIFFUSE``), its reflection share stronger (``gloss * (0.12 + 0.40 max(0, n_z))``) and
+tinted by the paint (the flakes reflect in the pigment's hue: ``env * lerp(1, hue(a), METALLIC_TINT)``,
+``hue`` the albedo at luminance 1), so a metallic body is darker on its sides and brighter, in its own
+colour, where it faces the sky. Per face, in the same pass: no extra cost. :func:`is_metallic` picks which
+vehicles have it (:data:`METALLIC_SHARE`), :func:`metallic_paint` re-tags their paint. Upward faces of matte material under a grey sky
 reduce exactly to :func:`~harness.render.shading.shade` with ``ambient = A``.
 """
 
@@ -31,6 +38,7 @@ from enum import IntEnum
 import numpy as np
 
 from harness.render.look import SkyLook, SunLook
+from harness.world.vehicles import HEAVY_BODIES
 
 GAMMA = 2.2
 #: Linear albedo of the ground under the sky when the caller gives none (a mid asphalt, sRGB 0..255).
@@ -53,6 +61,7 @@ class Material(IntEnum):
     TRIM = 7      # black plastic, grilles, recesses, panel gaps, plate characters
     DIRT = 8      # road grime on the lower body, matte
     SHADOW = 9    # the ground under a vehicle, lit by the part of the sky it sees only
+    METALLIC = 10  # metallic body paint: darker diffuse, stronger reflection tinted by the paint
 
 
 #: Per material: reflection share at a vertical face, extra share at an upward face, emission share.
@@ -64,6 +73,13 @@ _REFLECT[Material.RIM] = (0.12, 0.10, 0.0)
 _REFLECT[Material.LIGHT] = (0.03, 0.06, 0.45)
 _REFLECT[Material.PLATE] = (0.02, 0.02, 0.12)
 _REFLECT[Material.TRIM] = (0.015, 0.03, 0.0)
+_REFLECT[Material.METALLIC] = (0.12, 0.40, 0.0)
+#: Metallic paint: the share of the albedo its diffuse part keeps, and how far its reflection takes the paint's hue.
+METALLIC_DIFFUSE, METALLIC_TINT = 0.75, 0.6
+#: Share of light vehicles (cars, vans, pickups) and of heavy ones (lorries, buses: their cabs) with metallic paint
+#: (assumed: about half of the European car fleet's paint is metallic or pearl, the paint makers' colour reports;
+#: fleet lorries and buses mostly solid colours).
+METALLIC_SHARE = {"light": 0.5, "heavy": 0.15}
 
 
 def srgb_to_linear(srgb255) -> np.ndarray:
@@ -113,7 +129,13 @@ def shade_realistic(albedo_srgb: np.ndarray, normals: np.ndarray, material: np.n
     q = 0.5 * (1.0 - nz)
     env = (1.0 - q) * sky_env + q * ground
     base, extra, emit = _REFLECT[mat].T
-    share = (base[:, None] + extra[:, None] * up) * np.where(mat == Material.PAINT, float(gloss), 1.0)[:, None]
+    glossy = (mat == Material.PAINT) | (mat == Material.METALLIC)
+    share = (base[:, None] + extra[:, None] * up) * np.where(glossy, float(gloss), 1.0)[:, None]
+    metallic = (mat == Material.METALLIC)[:, None]
+    if metallic.any():
+        hue = a / np.maximum(a @ _LUMA, 1e-3)[:, None]
+        env = np.where(metallic, env * ((1.0 - METALLIC_TINT) + METALLIC_TINT * np.clip(hue, 0.0, 3.0)), env)
+        light = np.where(metallic, METALLIC_DIFFUSE * light, light)
     out = a * light + share * env + emit[:, None] * a
     return np.clip(out, 0.0, 1.0) ** (1.0 / GAMMA)
 
@@ -123,3 +145,18 @@ def shade_matte(albedo_srgb: np.ndarray, normals: np.ndarray, light_dir: np.ndar
     """:func:`shade_realistic` of static surfaces (road, verge, roadside objects): every face :attr:`Material.MATTE`."""
     mat = np.full(len(np.asarray(normals)), int(Material.MATTE))
     return shade_realistic(albedo_srgb, normals, mat, light_dir, sun, sky, 0.0, in_shadow, ground_srgb)
+
+
+def is_metallic(look_seed: int, vehicle_id: int, body: str | None = None) -> bool:
+    """Whether a vehicle's paint is metallic (:data:`METALLIC_SHARE`; deterministic per look and id)."""
+    rng = np.random.default_rng([int(look_seed) & 0xFFFFFFFF, int(vehicle_id) & 0xFFFFFFFF, 0x3E7A])
+    return bool(rng.uniform() < METALLIC_SHARE["heavy" if body in HEAVY_BODIES else "light"])
+
+
+def metallic_paint(material: np.ndarray, metallic: bool) -> np.ndarray:
+    """``material`` (F,) with its :attr:`Material.PAINT` faces re-tagged :attr:`Material.METALLIC` when ``metallic``."""
+    if not metallic:
+        return material
+    out = np.array(material, copy=True)
+    out[out == Material.PAINT] = Material.METALLIC
+    return out

@@ -82,30 +82,34 @@ def _wheel(x: float, y_outer: float, side: int, radius: float, width: float) -> 
     return m
 
 
-def vehicle_trimesh(length: float, width: float, color: tuple[int, int, int]) -> trimesh.Trimesh:
+def vehicle_trimesh(length: float, width: float, color: tuple[int, int, int],
+                    body: str | None = None) -> trimesh.Trimesh:
     """One merged mesh (face colours) of a vehicle in its model frame."""
-    return trimesh.util.concatenate(_vehicle_parts(length, width, color))
+    return trimesh.util.concatenate(_vehicle_parts(length, width, color, body))
 
 
 def vehicle_faces(length: float, width: float, color: tuple[int, int, int], detailed: bool = False,
-                  dirt: float = 0.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  dirt: float = 0.0, seed: int = 0,
+                  body: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`vehicle_trimesh`'s triangles (F, 3, 3), face normals (F, 3) and face colours (F, 3) (0..255, float),
     the shape built once per footprint (the convex hulls are the cost) and painted per call.
 
     ``detailed``: the realistic look's vehicle instead (:func:`vehicle_faces_detailed` without its material
-    tags; ``dirt`` and ``seed`` as there). Without it ``dirt`` and ``seed`` are ignored."""
+    tags; ``dirt`` and ``seed`` as there). Without it ``dirt`` and ``seed`` are ignored. ``body``: a body type of
+    :mod:`harness.world.vehicles` (None: the footprint decides); the simple mesh takes the layout's heights."""
     if detailed:
-        return vehicle_faces_detailed(length, width, color, dirt, seed)[:3]
-    triangles, normals, colors, painted = _vehicle_shape(length, width)
+        return vehicle_faces_detailed(length, width, color, dirt, seed, body)[:3]
+    triangles, normals, colors, painted = _vehicle_shape(length, width, body)
     colors = colors.copy()
     colors[painted] = color
     return triangles, normals, colors
 
 
 @functools.lru_cache(maxsize=256)
-def _vehicle_shape(length: float, width: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _vehicle_shape(length: float, width: float,
+                   body: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Read-only triangles, face normals, face colours (painted faces unset) and painted-face mask of one footprint."""
-    parts = _vehicle_parts(length, width, None)
+    parts = _vehicle_parts(length, width, None, body)
     tm = trimesh.util.concatenate(parts)
     painted = np.repeat([bool(p.metadata.get("painted")) for p in parts], [len(p.faces) for p in parts])
     out = (tm.vertices[tm.faces], tm.face_normals, tm.visual.face_colors[:, :3].astype(float), painted)
@@ -114,9 +118,10 @@ def _vehicle_shape(length: float, width: float) -> tuple[np.ndarray, np.ndarray,
     return out
 
 
-def _vehicle_parts(length: float, width: float, color: tuple[int, int, int] | None) -> list[trimesh.Trimesh]:
+def _vehicle_parts(length: float, width: float, color: tuple[int, int, int] | None,
+                   body: str | None = None) -> list[trimesh.Trimesh]:
     """The parts of :func:`vehicle_trimesh`; ``color`` None leaves the painted ones uncoloured (marked ``painted``)."""
-    L = vehicle_layout(length, width)
+    L = vehicle_layout(length, width, body)
     hl, hw = length / 2, width / 2
     parts: list[trimesh.Trimesh] = []
     if L.truck:
@@ -130,7 +135,7 @@ def _vehicle_parts(length: float, width: float, color: tuple[int, int, int] | No
                             (hl - 0.4, -hw + 0.1, 3.0), (hl - 0.4, hw - 0.1, 3.0)], GLASS))       # cab glass
         parts.append(_box(-hl, -hl + 0.04, -hw + 0.1, -hw + 0.35, 0.6, 0.9, TAIL_LIGHT))
         parts.append(_box(-hl, -hl + 0.04, hw - 0.35, hw - 0.1, 0.6, 0.9, TAIL_LIGHT))
-        axles = [L.rear_axle_x, L.rear_axle_x + 1.3, L.front_axle_x]
+        axles = list(L.axles)
     else:
         lower_top = 0.6
         parts.append(_box(-hl, hl, -hw, hw, L.clearance, lower_top, color))                       # bumpers + sills
@@ -487,18 +492,33 @@ def _wrap_light(parts: _Parts, side: int, facing: int, x_face: float, y_face: fl
 #: chamfers, ``screen_run`` the windscreen's run from its base to its top.
 _CAR_BODY = dict(nose=0.55, tail=0.15, belt_in=0.05, glass_in=0.11, tumble=0.22, roof_in=0.33, roof_round=0.07,
                  roof_rx=0.12, roof_fx=0.12, screen_run=0.80)
-#: Per car style: (rear glass base, rear glass top) ahead of the rear face (m): the rear window's rake.
-_CAR_REAR = {"hatch": (0.18, 1.00), "sedan": (0.75, 1.45), "estate": (0.15, 0.62)}
+#: Per car style: (rear glass base, rear glass top) ahead of the rear face (m): the rear window's rake. An SUV has
+#: an estate's long roof over a steeper tailgate; a pickup's cab starts above its bed (:attr:`VehicleLayout.cab_length`).
+_CAR_REAR = {"hatch": (0.18, 1.00), "sedan": (0.75, 1.45), "estate": (0.15, 0.62), "suv": (0.14, 0.48)}
+#: Per style, what differs from :data:`_CAR_BODY`: an SUV's blunter nose and upright tailgate, a pickup's flat
+#: tailgate and upright cab.
+_STYLE_BODY = {"suv": dict(nose=0.45, tail=0.08, tumble=0.16, roof_in=0.27, screen_run=0.72),
+               "pickup": dict(nose=0.45, tail=0.03, tumble=0.14, roof_in=0.25, screen_run=0.70, roof_rx=0.05)}
+#: The style of a car body type.
+_BODY_STYLE = {"hatchback": "hatch", "saloon": "sedan", "estate": "estate", "suv": "suv", "van": "van",
+               "pickup": "pickup"}
 
 
-def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generator) -> _Parts:
-    """A detailed car or van (the shape of :func:`vehicle_layout`): see :func:`vehicle_faces_detailed`."""
-    L = vehicle_layout(length, width)
+def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generator, body: str | None = None) -> _Parts:
+    """A detailed car, van or pickup (the shape of :func:`vehicle_layout`): see :func:`vehicle_faces_detailed`."""
+    L = vehicle_layout(length, width, body)
     hl, hw, H, r = length / 2, width / 2, L.roof, L.wheel_radius
     hb = hw - 0.085                                    # body side; the mirrors reach out to hw
-    van = H > 1.8
-    style = "van" if van else ("hatch" if length < 4.3 else str(rng.choice(["hatch", "sedan", "estate"])))
-    z_cl, z0, z_bt, belt = L.clearance, 0.30, 0.56, L.belt
+    if body is None:
+        van = H > 1.8
+        style = "van" if van else ("hatch" if length < 4.3 else str(rng.choice(["hatch", "sedan", "estate"])))
+        lift = rise = 0.0
+    else:
+        style = _BODY_STYLE[body]
+        van = style == "van"
+        lift = round(L.clearance - 0.17, 3)           # bumpers, plates, intakes with the body's ground clearance
+        rise = round(max(lift, L.belt - 0.95), 3)     # lamps with its belt line
+    z_cl, z0, z_bt, belt = L.clearance, 0.30 + lift, 0.56 + lift, L.belt
     z_st, z_sh = z_bt + 0.025, belt - (0.02 if van else 0.12)
     c_r, c_f = 0.10, (0.10 if van else 0.20)
     parts = _Parts()
@@ -509,7 +529,7 @@ def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generato
     if van:
         rings.append(_octagon(belt, -hl + 0.03, hl - 0.04, hb - 0.01, c_r, c_f))
     else:   # rounded nose and boot: the bonnet falls towards the front, the deck's rear edge is chamfered
-        p = _CAR_BODY
+        p = {**_CAR_BODY, **_STYLE_BODY.get(style, {})}
         z_mid = 0.5 * (z_sh + belt)
         levels.insert(-1, z_mid)
         rings += [_octagon(z_mid, -hl + 0.03 + 0.4 * p["tail"], hl - 0.03 - 0.3 * p["nose"], hb - 0.4 * p["belt_in"],
@@ -532,23 +552,28 @@ def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generato
         rb, rt, fb, ft = -hl + 0.03, -hl + 0.09, hl - 0.80, hl - 1.50
         y0, y1, y2, z1 = hb - 0.01, hb - 0.05, hb - 0.10, H - 0.06
     else:
-        p = _CAR_BODY
         fb = hl - b_len
         ft = fb - p["screen_run"]
-        rb, rt = (-hl + u for u in _CAR_REAR[style])
+        if style == "pickup":    # the cab's rear wall stands at the front of the bed
+            rb = -hl + round(length - L.cab_length, 3)
+            rt = rb + 0.10
+        else:
+            rb, rt = (-hl + u for u in _CAR_REAR[style])
         y0, y1, y2, z1 = hb - p["glass_in"], hb - p["glass_in"] - p["tumble"], hb - p["roof_in"], H - p["roof_round"]
 
     def rect(z, xr, xf, y):
         return np.array([(xr, -y, z), (xf, -y, z), (xf, y, z), (xr, y, z)])
 
-    rx, fx = (0.05, 0.07) if van else (_CAR_BODY["roof_rx"], _CAR_BODY["roof_fx"])
+    rx, fx = (0.05, 0.07) if van else (p["roof_rx"], p["roof_fx"])
     cab = [rect(belt, rb, fb, y0), rect(z1, rt, ft, y1), rect(H, rt + rx, ft - fx, y2)]
     side_br, side_glass, side_t = {
         "hatch": ([0, .30, .54, .59, .93, 1], {1, 3}, [0, .09, .92, 1]),
         "sedan": ([0, .22, .52, .57, .93, 1], {1, 3}, [0, .09, .92, 1]),
         "estate": ([0, .09, .25, .29, .53, .58, .93, 1], {1, 3, 5}, [0, .09, .92, 1]),
+        "suv": ([0, .08, .24, .28, .53, .58, .93, 1], {1, 3, 5}, [0, .08, .92, 1]),
+        "pickup": ([0, .08, .47, .52, .93, 1], {1, 3}, [0, .08, .92, 1]),
         "van": ([0, .74, .77, .95, 1], {2}, [0, .06, .62, 1])}[style]
-    a = {"hatch": 0.11, "sedan": 0.12, "estate": 0.085, "van": 0.05}[style]
+    a = {"hatch": 0.11, "sedan": 0.12, "estate": 0.085, "suv": 0.09, "pickup": 0.12, "van": 0.05}[style]
     if van:
         rear_s, rear_t, rear_cells, gap_cells = [0, a, .49, .51, 1 - a, 1], [0, .40, .88, 1], {(1, 1), (3, 1)}, {2}
     else:
@@ -600,7 +625,7 @@ def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generato
     else:
         x_fd = min(fb + 0.03, L.front_axle_x - arch_r - 0.05)
         x_b = rb + 0.545 * (fb - rb)
-        c_end = side_br[3] if style == "estate" else side_br[1]
+        c_end = side_br[3] if style in ("estate", "suv") else side_br[1]
         x_rd = max(rb + c_end * (fb - rb), L.rear_axle_x + arch_r + 0.05)
         lines, handles = [x_fd, x_b, x_rd], [x_b - 0.20, x_rd + 0.06]
     for side in (-1, 1):
@@ -611,9 +636,11 @@ def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generato
     # rear: tail lights round the corners, plate in a dark recess, exhaust
     x_rear = -hl + 0.03
     if van:
-        w, zi, zo = float(rng.uniform(0.12, 0.16)), (0.62, 0.92), (0.60, 0.93)
+        w, zi, zo = float(rng.uniform(0.12, 0.16)), (0.62 + rise, 0.92 + rise), (0.60 + rise, 0.93 + rise)
+    elif style == "pickup":   # tall narrow clusters at the tailgate's corners
+        w, zi, zo = float(rng.uniform(0.12, 0.16)), (0.66 + rise, 0.90 + rise), (0.64 + rise, 0.91 + rise)
     else:
-        w, zi, zo = float(rng.uniform(0.26, 0.40)), (0.68, 0.80), (0.64, 0.82)
+        w, zi, zo = float(rng.uniform(0.26, 0.40)), (0.68 + rise, 0.80 + rise), (0.64 + rise, 0.82 + rise)
     x_lamp = x_rear - 0.018
     y_inner = hb - c_r - w
     for side in (-1, 1):
@@ -623,7 +650,7 @@ def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generato
             ya, yb = sorted((side * (y_inner + u0), side * (y_inner + u1)))
             parts.add(_rect_x(x_lamp, ya, yb, za, zb, -1), rgb, LIGHT_MAT)
 
-        if van:
+        if van or style == "pickup":
             lamp(0.015, w - 0.015, zi[1] - 0.12, zi[1] - 0.015, LAMP_BRAKE)
             lamp(0.015, w - 0.015, zi[0] + 0.14, zi[0] + 0.22, LAMP_AMBER)
             lamp(0.015, w - 0.015, zi[0] + 0.02, zi[0] + 0.12, LAMP_WHITE)
@@ -631,31 +658,42 @@ def _car_parts(length: float, width: float, dirt: float, rng: np.random.Generato
             lamp(0.02, 0.02 + 0.28 * w, zi[0] + 0.02, zi[1] - 0.02, LAMP_WHITE)
             lamp(0.35 * w, 0.95 * w, zi[1] - 0.055, zi[1] - 0.015, LAMP_BRAKE)
             lamp(0.35 * w, 0.95 * w, zi[0] + 0.02, zi[0] + 0.05, LAMP_AMBER)
-    parts.add(_rect_x(-hl + 0.022, -0.29, 0.29, 0.60, 0.74, -1), TRIM_BLACK, TRIM_MAT)
+    parts.add(_rect_x(-hl + 0.022, -0.29, 0.29, 0.60 + lift, 0.74 + lift, -1), TRIM_BLACK, TRIM_MAT)
     rear_plate = PLATE_YELLOW if rng.uniform() < 0.3 else PLATE_WHITE
-    _plate(parts, -hl + 0.016, -1, 0.615, 0.725, rear_plate, rng)
+    _plate(parts, -hl + 0.016, -1, 0.615 + lift, 0.725 + lift, rear_plate, rng)
     ex_y = -(hb - 0.32)
-    parts.add(_box_tris(-hl + 0.012, -hl + 0.22, ex_y - 0.045, ex_y + 0.045, 0.205, 0.265), (70, 70, 72), TRIM_MAT)
+    parts.add(_box_tris(-hl + 0.012, -hl + 0.22, ex_y - 0.045, ex_y + 0.045, 0.205 + lift, 0.265 + lift), (70, 70, 72),
+              TRIM_MAT)
+    if style == "pickup":   # the open bed: its dark floor and liner seen from above, inside the rails
+        yl, xl0, xl1, zl = hb - p["belt_in"] - 0.07, -hl + 0.03 + p["tail"] + 0.06, rb - 0.06, belt + 0.004
+        parts.add(_quad((xl0, -yl, zl), (xl1, -yl, zl), (xl1, yl, zl), (xl0, yl, zl), (0, 0, 1)), (34, 34, 36), TRIM_MAT)
+        for x in np.linspace(xl0 + 0.15, xl1 - 0.15, 5):   # ribs of the liner
+            parts.add(_quad((x - 0.02, -yl, zl + 0.002), (x + 0.02, -yl, zl + 0.002), (x + 0.02, yl, zl + 0.002),
+                            (x - 0.02, yl, zl + 0.002), (0, 0, 1)), (55, 55, 57), TRIM_MAT)
     # front: head lights, grille, lower intake, plate (its characters are the front-most part, at +hl)
     x_front = hl - 0.03
     wh = 0.30 if not van else 0.22
     for side in (-1, 1):
-        _wrap_light(parts, side, 1, x_front, hb, c_f, wh, 0.04, (0.66, 0.76), (0.68, 0.78), LAMP_HEAD)
+        _wrap_light(parts, side, 1, x_front, hb, c_f, wh, 0.04, (0.66 + rise, 0.76 + rise), (0.68 + rise, 0.78 + rise),
+                    LAMP_HEAD)
         yg0, yg1 = sorted((side * 0.28, side * (hb - 0.28)))
-        parts.add(_rect_x(hl - 0.007, yg0, yg1, 0.33, 0.50, 1), RECESS, TRIM_MAT)
+        parts.add(_rect_x(hl - 0.007, yg0, yg1, 0.33 + lift, 0.50 + lift, 1), RECESS, TRIM_MAT)
     yg = hb - c_f - wh - 0.03
-    parts.add(_rect_x(x_front + 0.008, -yg, yg, 0.62, 0.75, 1), (30, 30, 32), TRIM_MAT)
-    parts.add(_rect_x(hl - 0.007, -(hb - 0.28), hb - 0.28, 0.31, 0.35, 1), RECESS, TRIM_MAT)
-    _plate(parts, hl - 0.006, 1, 0.37, 0.48, PLATE_WHITE, rng)
+    parts.add(_rect_x(x_front + 0.008, -yg, yg, 0.62 + lift, 0.75 + rise, 1), (30, 30, 32), TRIM_MAT)
+    parts.add(_rect_x(hl - 0.007, -(hb - 0.28), hb - 0.28, 0.31 + lift, 0.35 + lift, 1), RECESS, TRIM_MAT)
+    _plate(parts, hl - 0.006, 1, 0.37 + lift, 0.48 + lift, PLATE_WHITE, rng)
     _contact_shadow(parts, hl, hw, (0.05, 0.105), (0.35, 0.305))
     return parts
 
 
-def _truck_parts(length: float, width: float, dirt: float, rng: np.random.Generator) -> _Parts:
+def _truck_parts(length: float, width: float, dirt: float, rng: np.random.Generator, body: str | None = None) -> _Parts:
     """A detailed truck: cab, box or curtain-sider body with rear doors, chassis, under-run bar, light bar,
-    mud flaps, twin rear tyres (the shape of :func:`vehicle_layout`)."""
-    L = vehicle_layout(length, width)
+    mud flaps, twin rear tyres (the shape of :func:`vehicle_layout`). An artic (``body`` ``"artic"``): a tractor
+    and its semi-trailer as one rigid footprint, the trailer's box ending 0.75 m behind the cab, the tractor's
+    drive axle under the trailer's nose, the trailer's axle group at its rear."""
+    L = vehicle_layout(length, width, body)
     hl, hw, H, r = length / 2, width / 2, L.roof, L.wheel_radius
+    artic = body == "artic"
     parts = _Parts()
     cab_len = 2.3
     x_c0, yc = hl - cab_len, hw - 0.10
@@ -665,12 +703,12 @@ def _truck_parts(length: float, width: float, dirt: float, rng: np.random.Genera
     box = _PAINT if box_rgb is None else box_rgb
     grey, dark = (150, 152, 155), (34, 34, 36)
     # -------- body: box or curtains between rails and corner posts; rear doors with bars and hinges
-    xb0, xb1, zb0, zb1 = -hl + 0.045, x_c0 - 0.15, 1.15, H - 0.02
+    xb0, xb1, zb0, zb1 = -hl + 0.045, x_c0 - (0.75 if artic else 0.15), 1.15, H - 0.02
     yb = hw - 0.01
     parts.add(_quad((xb0, -yb, zb1), (xb1, -yb, zb1), (xb1, yb, zb1), (xb0, yb, zb1), (0, 0, 1)), box, PAINT_MAT)
     parts.add(_quad((xb0, -yb, zb0), (xb1, -yb, zb0), (xb1, yb, zb0), (xb0, yb, zb0), (0, 0, -1)), dark, TRIM_MAT)
     parts.add(_rect_x(xb1, -yb, yb, zb0, zb1, 1), box, PAINT_MAT)
-    z_c0, z_c1 = 1.28, 3.45
+    z_c0, z_c1 = 1.28, round(H - 0.15, 6)
     for side in (-1, 1):
         if curtain:
             xs = np.linspace(-hl + 0.07, xb1, max(2, int(round((xb1 + hl - 0.07) / 0.30))) + 1)
@@ -702,7 +740,7 @@ def _truck_parts(length: float, width: float, dirt: float, rng: np.random.Genera
     for yy in (0.30 * dw, 0.72 * dw):
         for side in (-1, 1):
             y0, y1 = sorted((side * (yy - 0.018), side * (yy + 0.018)))
-            parts.add(_box_tris(-hl + 0.008, -hl + 0.030, y0, y1, 1.30, 3.40), (160, 162, 165), TRIM_MAT)
+            parts.add(_box_tris(-hl + 0.008, -hl + 0.030, y0, y1, 1.30, round(H - 0.2, 6)), (160, 162, 165), TRIM_MAT)
             y0, y1 = sorted((side * (yy - 0.02), side * (yy + 0.10)))
             parts.add(_box_tris(-hl, -hl + 0.008, y0, y1, 1.95, 2.0), (160, 162, 165), TRIM_MAT)
     for side in (-1, 1):
@@ -728,7 +766,9 @@ def _truck_parts(length: float, width: float, dirt: float, rng: np.random.Genera
     _plate(parts, -hl + 0.048, -1, 0.795, 0.905, rear_plate, rng)
     # -------- wheels: twin tyres on the rear tandem, mud flaps and guards
     steel = ((190, 190, 188), (120, 122, 126))[int(rng.integers(2))]
-    rear_axles = [L.rear_axle_x, L.rear_axle_x + 1.3]
+    rear_axles = list(L.axles[:-1])
+    group = rear_axles[:3] if artic else rear_axles      # the axles under the box (a trailer's group)
+    g_end = rear_axles[-1] if artic else L.front_axle_x  # the side guards run from the group to here
     for ax in rear_axles:
         for side in (-1, 1):
             _wheel_parts(parts, ax, side, hw - 0.05, 0.28, r, steel, True, dirt)
@@ -739,8 +779,8 @@ def _truck_parts(length: float, width: float, dirt: float, rng: np.random.Genera
         y0, y1 = sorted((side * (hw - 0.05), side * (hw - 0.70)))
         parts.add(_box_tris(xf - 0.012, xf, y0, y1, 0.22, 1.05), (18, 18, 18), TYRE_MAT, 0.4 * dirt)
         y0, y1 = sorted((side * (hw - 0.68), side * (hw - 0.04)))
-        parts.add(_box_tris(rear_axles[0] - 0.58, rear_axles[1] + 0.58, y0, y1, 1.04, 1.10), (30, 30, 32), TRIM_MAT)
-        g0, g1 = rear_axles[1] + r + 0.25, L.front_axle_x - r - 0.30
+        parts.add(_box_tris(group[0] - 0.58, group[-1] + 0.58, y0, y1, 1.04, 1.10), (30, 30, 32), TRIM_MAT)
+        g0, g1 = group[-1] + r + 0.25, g_end - r - 0.30
         if g1 - g0 > 0.5:
             y0, y1 = sorted((side * (hw - 0.07), side * (hw - 0.03)))
             for z0_, z1_ in ((0.50, 0.60), (0.82, 0.90)):
@@ -772,7 +812,7 @@ def _truck_parts(length: float, width: float, dirt: float, rng: np.random.Genera
             glass = (ci, cj) in cells
             parts.add(tris, GLASS_TINT if glass else _PAINT, GLASS_MAT if glass else PAINT_MAT)
     _loft(parts, rings[2:], lambda k, i: (_PAINT, 0.0), lambda k, i: PAINT_MAT, top=(_PAINT, PAINT_MAT))
-    if rng.uniform() < 0.6:
+    if rng.uniform() < 0.6 or artic:     # a roof fairing (every tractor: up to its trailer's height)
         pts = [(x, s * y, z) for s in (-1, 1) for x, y, z in
                ((x_c0 + 0.10, yc - 0.10, z_cr), (hl - 0.9, yc - 0.12, z_cr), (x_c0 + 0.05, yc - 0.12, H - 0.08),
                 (x_c0 + 0.55, yc - 0.14, H - 0.08))]
@@ -801,23 +841,108 @@ def _truck_parts(length: float, width: float, dirt: float, rng: np.random.Genera
     return parts
 
 
+def _bus_parts(length: float, width: float, dirt: float, rng: np.random.Generator, body: str | None = "bus") -> _Parts:
+    """A detailed bus or coach: a one-box body with rounded corners, a band of side windows between pillars
+    from the belt line to 0.42 m below the roof, a windscreen with a destination display, a rear window over the
+    engine grille, bumpers, lamps, plates, mirrors at the front corners, twin rear tyres (:func:`vehicle_layout`)."""
+    L = vehicle_layout(length, width, "bus")
+    hl, hw, H, r = length / 2, width / 2, L.roof, L.wheel_radius
+    hb = hw - 0.07                       # body side; the mirrors reach out to hw
+    z0, belt, z_wt, z_r = 0.40, L.belt, round(H - 0.42, 6), round(H - 0.10, 6)
+    c = 0.14
+    xr, xf = -hl + 0.02, hl - 0.02       # the body's end faces; bumpers and plates reach the footprint's ends
+    parts = _Parts()
+    grey, dark = (150, 152, 155), (34, 34, 36)
+    steel = ((190, 190, 188), (120, 122, 126))[int(rng.integers(2))]
+    # lower body, with grime at its foot; the dark underbody
+    levels, rings = _with_levels([z0, belt], [_octagon(z0, xr, xf, hb, c, c), _octagon(belt, xr, xf, hb, c, c)],
+                                 _dirt_levels(z0, dirt))
+    _loft(parts, rings, lambda k, i: (_PAINT, _grime_of(levels[k + 1], z0, dirt)),
+          lambda k, i: DIRT_MAT if _grime_of(levels[k + 1], z0, dirt) else PAINT_MAT, bottom=(dark, TRIM_MAT))
+    tray = [_octagon(L.clearance, xr + 0.4, xf - 0.4, hb - 0.10, 0.05, 0.05), _octagon(z0, xr + 0.01, xf - 0.01,
+                                                                                        hb - 0.01, c, c)]
+    _loft(parts, tray, lambda k, i: (dark, 0.3 * dirt), lambda k, i: TRIM_MAT, bottom=(dark, TRIM_MAT))
+    # window band: glass between pillars on the sides, the windscreen and display at the front, a rear window
+    lo, hi = _octagon(belt, xr, xf, hb, c, c), _octagon(z_wt, xr, xf, hb, c, c)
+    side_len = (xf - c) - (xr + c)
+    n_win = max(3, int(round(side_len / 1.45)))
+    pillar = 0.10 / side_len
+    s_side = [0.0] + [v for k in range(1, n_win) for v in (k / n_win - pillar / 2, k / n_win + pillar / 2)] + [1.0]
+    s_side = [0.0, 0.02] + s_side[1:-1] + [0.985, 1.0]
+    for i in range(8):
+        cq, out = _band(lo, hi, i)
+        if i in (1, 5):
+            cells = {(k, 1) for k in range(1, len(s_side) - 2, 2)}
+            s_br, t_br = s_side, [0, .05, .93, 1]
+        elif i == 3:
+            cells, s_br, t_br = {(1, 1)}, [0, .03, .97, 1], [0, .02, .78, 1]
+        elif i == 7:
+            cells, s_br, t_br = {(1, 2)}, [0, .10, .90, 1], [0, .40, .55, .92, 1]
+        else:
+            cells, s_br, t_br = set(), [0, 1], [0, 1]
+        for ci, cj, tris in _grid(cq, out, s_br, t_br):
+            glass = (ci, cj) in cells
+            parts.add(tris, GLASS_TINT if glass else _PAINT, GLASS_MAT if glass else PAINT_MAT)
+        if i == 3:       # destination display above the windscreen glass
+            parts.add(_decal(cq, out, .22, .78, .82, .96, 0.008), (20, 20, 22), TRIM_MAT)
+            parts.add(_decal(cq, out, .30, .70, .86, .92, 0.012), LAMP_AMBER, LIGHT_MAT)
+        if i == 7:       # engine grille below the rear window
+            parts.add(_decal(cq, out, .20, .80, .06, .34, 0.008), RECESS, TRIM_MAT)
+    # roof: a painted band, the rounded roof edge, the roof with a dark air-conditioning pod
+    top = [hi, _octagon(z_r, xr + 0.04, xf - 0.06, hb - 0.05, c, c), _octagon(H, xr + 0.20, xf - 0.30, hb - 0.20, c, c)]
+    _loft(parts, top, lambda k, i: (_PAINT, 0.0), lambda k, i: PAINT_MAT, top=(_PAINT, PAINT_MAT))
+    # bumpers at the footprint's ends, lamps, plates
+    parts.add(_box_tris(-hl, xr + 0.08, -(hb - 0.05), hb - 0.05, 0.40, 0.62), (45, 45, 48), TRIM_MAT)
+    parts.add(_box_tris(xf - 0.08, hl - 0.012, -(hb - 0.05), hb - 0.05, 0.40, 0.62), (45, 45, 48), TRIM_MAT)
+    for side in (-1, 1):
+        y0, y1 = sorted((side * (hb - 0.30), side * (hb - 0.08)))
+        for za, zb, rgb in ((0.68, 0.84, LAMP_AMBER), (0.84, 1.06, LAMP_TAIL), (1.06, 1.14, LAMP_BRAKE)):
+            parts.add(_rect_x(xr - 0.012, y0, y1, za, zb, -1), rgb, LIGHT_MAT)
+        parts.add(_rect_x(xf + 0.012, y0, y1, 0.66, 0.82, 1), LAMP_HEAD, LIGHT_MAT)
+        parts.add(_rect_x(xf + 0.012, y0, y1, 0.84, 0.90, 1), LAMP_AMBER, LIGHT_MAT)
+    _plate(parts, xr - 0.004, -1, 0.70, 0.81, PLATE_YELLOW if rng.uniform() < 0.4 else PLATE_WHITE, rng)
+    _plate(parts, hl - 0.006, 1, 0.45, 0.56, PLATE_WHITE, rng)
+    # wheels: single front tyres, twin rear ones, under dark arches
+    for side in (-1, 1):
+        for ax in (L.rear_axle_x, L.front_axle_x):
+            _arch(parts, ax, side, hb + 0.012, r, r + 0.09, z0)
+        _wheel_parts(parts, L.front_axle_x, side, hb + 0.04, 0.30, r, steel, True, dirt)
+        _wheel_parts(parts, L.rear_axle_x, side, hb + 0.04, 0.28, r, steel, True, dirt)
+        _wheel_parts(parts, L.rear_axle_x, side, hb + 0.04 - 0.31, 0.28, r, steel, False, dirt)
+        # doors (front and middle, on the right) and panel lines
+        for x in (L.front_axle_x + r + 0.25, L.rear_axle_x + r + 0.30):
+            if side < 0:
+                parts.add(_rect_y(-(hb + 0.006), x, x + 0.012, z0 + 0.05, belt - 0.05, -1), GAP, TRIM_MAT)
+                parts.add(_rect_y(-(hb + 0.006), x + 1.1, x + 1.112, z0 + 0.05, belt - 0.05, -1), GAP, TRIM_MAT)
+        # mirrors on arms at the front corners: the widest part, out to |Y| = hw
+        y0, y1 = sorted((side * (hb - 0.02), side * hw))
+        parts.add(_box_tris(xf - 0.45, xf - 0.33, y0, y1, 1.95, 2.45), TRIM_BLACK, TRIM_MAT)
+        parts.add(_rect_x(xf - 0.456, *sorted((side * hb, side * (hw - 0.01))), 2.0, 2.4, -1), GLASS_TINT, GLASS_MAT)
+    _contact_shadow(parts, hl, hw, (0.10, 0.06), (0.70, 0.45))
+    return parts
+
+
 def _detailed_rng(seed: int) -> np.random.Generator:
     return np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x4835])
 
 
 @functools.lru_cache(maxsize=512)
-def _detailed_shape(length: float, width: float, dirt: float, seed: int):
+def _detailed_shape(length: float, width: float, dirt: float, seed: int, body: str | None = None):
     """Read-only triangles, normals, fixed colours, colour roles, grime strengths and materials of one detailed
-    vehicle (built once per footprint, dirt and seed)."""
-    build = _truck_parts if vehicle_layout(length, width).truck else _car_parts
-    out = build(float(length), float(width), float(np.clip(dirt, 0.0, 1.0)), _detailed_rng(seed)).arrays()
+    vehicle (built once per footprint, body type, dirt and seed)."""
+    if body is None:
+        build = _truck_parts if vehicle_layout(length, width).truck else _car_parts
+        out = build(float(length), float(width), float(np.clip(dirt, 0.0, 1.0)), _detailed_rng(seed)).arrays()
+    else:
+        build = _bus_parts if body == "bus" else _truck_parts if body in ("box_truck", "artic") else _car_parts
+        out = build(float(length), float(width), float(np.clip(dirt, 0.0, 1.0)), _detailed_rng(seed), body).arrays()
     for a in out:
         a.setflags(write=False)
     return out
 
 
 def vehicle_faces_detailed(length: float, width: float, color: tuple[int, int, int], dirt: float = 0.0,
-                           seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                           seed: int = 0, body: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A detailed vehicle of the realistic look in its model frame (X forward, Y left, Z up, m):
     triangles (F, 3, 3), unit face normals (F, 3), face colours (F, 3) (sRGB 0..255, float) and
     (F,) :class:`~harness.render.materials.Material` tags (int8).
@@ -831,13 +956,20 @@ def vehicle_faces_detailed(length: float, width: float, color: tuple[int, int, i
     ``dirt`` 0..1: grime on the lower body, higher and browner as it grows. ``seed`` picks the body
     style, lamp sizes, rims, plate colour and characters (the same seed, the same vehicle).
 
+    ``body`` (:data:`harness.world.vehicles.BODY_TYPES`) builds that type instead of the footprint's: hatchback
+    (short rear, raked hatch), saloon (boot), estate (long roof), SUV (taller, higher clearance and belt, an
+    upright tailgate), pickup (cab and an open bed: its dark floor and liner ribs inside the rails), van (tall
+    one-box), box truck (cab and box; a single rear axle up to 9 m), artic (tractor and semi-trailer as one rigid
+    footprint: a tri-axle trailer group, the drive axle under its nose, a gap behind the cab, a roof fairing), bus
+    (one box, a band of side windows between pillars, destination display, rear window over the engine grille).
+
     The mesh lies in the footprint box X in [-L/2, L/2], Y in [-W/2, W/2], Z in [0, vehicle_height]
     and touches all six of its faces: rear bumper (or the truck's rear posts) at -L/2, the front plate's
     characters (head lamps on a truck) at +L/2, mirrors (truck box sides) at +-W/2, roof (box rails)
     at the height, tyres on the ground at their axles.
     """
     triangles, normals, fixed, role, grime, material = _detailed_shape(float(length), float(width),
-                                                                        float(dirt), int(seed))
+                                                                        float(dirt), int(seed), body)
     albedo = fixed.copy()
     paint = np.asarray(color, dtype=float)
     albedo[role == 1] = paint

@@ -172,11 +172,14 @@ class RealisticScene:
         return tuple(c / 255.0 for c in self.look.sky.horizon_srgb)
 
     # ------------------------------------------------------------------ vehicles
-    def vehicle_parts(self, length: float, width: float, vehicle_id: int) -> VehicleParts:
-        """The detailed vehicle of ``vehicle_id`` (body style by id, paint by fleet share)."""
+    def vehicle_parts(self, length: float, width: float, vehicle_id: int, body: str | None = None) -> VehicleParts:
+        """The detailed vehicle of ``vehicle_id`` (body type ``body``, else its style by id; paint by fleet
+        share, metallic for :func:`materials.is_metallic` of it)."""
         tri, normals, albedo, material = meshes.vehicle_faces_detailed(
-            length, width, fleet_color(self.look.seed, vehicle_id), self.look.vehicle.dirt, seed=int(vehicle_id))
-        return VehicleParts(tri, normals, albedo, material, vehicle_height(length, width))
+            length, width, fleet_color(self.look.seed, vehicle_id), self.look.vehicle.dirt, seed=int(vehicle_id),
+            body=body)
+        material = materials.metallic_paint(material, materials.is_metallic(self.look.seed, vehicle_id, body))
+        return VehicleParts(tri, normals, albedo, material, vehicle_height(length, width, body))
 
     def vehicle_mesh(self, parts: VehicleParts, light_model: np.ndarray) -> pyrender.Mesh:
         """The vehicle's mesh shaded for light travelling along ``light_model`` (its model frame)."""
@@ -191,10 +194,12 @@ class RealisticScene:
         tri = shadows.cast_shadow(length, width, height, light_model)
         return self._shadow_mesh(tri) if len(tri) else None
 
-    def far_parts(self, length: float, width: float, vehicle_id: int) -> VehicleParts:
+    def far_parts(self, length: float, width: float, vehicle_id: int, body: str | None = None) -> VehicleParts:
         """The simple look's mesh of ``vehicle_id`` with the realistic paint and material tags (the far LOD)."""
-        tri, normals, albedo = meshes.vehicle_faces(length, width, fleet_color(self.look.seed, vehicle_id))
-        return VehicleParts(tri, normals, albedo, simple_materials(albedo), vehicle_height(length, width))
+        tri, normals, albedo = meshes.vehicle_faces(length, width, fleet_color(self.look.seed, vehicle_id), body=body)
+        material = materials.metallic_paint(simple_materials(albedo),
+                                            materials.is_metallic(self.look.seed, vehicle_id, body))
+        return VehicleParts(tri, normals, albedo, material, vehicle_height(length, width, body))
 
     # -------------------------------------------------------------------- frames
     def follow_camera(self, scene: pyrender.Scene, camera_pose: np.ndarray) -> None:

@@ -17,6 +17,9 @@ A scenario's ``conditions:`` block (time of day, fog, rain, lens; :mod:`harness.
 changes the scene lighting and, through the colour pass's depth buffer (read only then), adds
 image-space effects; without it (or with a neutral one) nothing of that runs.
 
+A camera with lens distortion draws both passes on a wider pinhole canvas and warps them onto the
+distorted image (:mod:`harness.render.distortion`); a pinhole camera runs none of that.
+
 pyrender's ``IntrinsicsCamera`` puts pixel centres at half-integers of its
 cx/cy (OpenGL window convention); OpenCV's are at integers, so cx/cy are passed
 shifted by +0.5 (checked by the tests against ``cv2.projectPoints``).
@@ -43,6 +46,7 @@ from harness.render.realistic import OCCLUDER_CODE, RealisticScene, VehicleParts
 from harness.world import geometry  # noqa: E402
 from harness.world.vehicles import vehicle_height  # noqa: E402
 from harness.render.sensor import apply_sensor  # noqa: E402
+from harness.render.distortion import lens_warp  # noqa: E402
 from harness.world.scenario import Scenario  # noqa: E402
 from harness.world.road import road_plan, road_profile  # noqa: E402
 from harness.world.state import VehicleState, WorldState  # noqa: E402
@@ -141,6 +145,7 @@ class _Vehicle:
     parts: VehicleParts | None = None          # realistic look: the detailed mesh
     shadow_node: pyrender.Node | None = None   # realistic look: its sun shadow
     far: bool = False                          # realistic look: drawn with the far level of detail
+    body: str | None = None                    # the vehicle's body type (harness.world.vehicles)
 
 
 class Renderer:
@@ -179,7 +184,8 @@ class Renderer:
             for tm in road.road_trimeshes(scenario.road, self._profile, self._plan).values():
                 colors = self._shade(tm.visual.face_colors[:, :3], tm.face_normals, self._light_w)
                 _add_mesh(self._scene, flat_mesh(tm.vertices[tm.faces], colors, self._material))
-        c = self.camera
+        self._lens = lens_warp(self.camera)   # a distorted lens: passes on a wider pinhole canvas, then warped
+        c = self._drawn(self.camera)
         self._cam = pyrender.IntrinsicsCamera(c.fx, c.fy, c.cx + PIXEL_CENTRE_SHIFT, c.cy + PIXEL_CENTRE_SHIFT,
                                               znear=ZNEAR_M, zfar=ZFAR_M)
         self._cam_node = self._scene.add(self._cam, pose=np.eye(4))
@@ -189,6 +195,13 @@ class Renderer:
         _live_renderers += 1
         self._passes = passes.Passes(self._pr, max_anisotropy=1.0 if self._real is None else ANISOTROPY)
         self._ray_factor = None if self._lighting is None else effects.ray_length_factor(c)
+        if self._lens is not None and self._ray_factor is not None:
+            self._ray_factor = self._lens.linear(self._ray_factor)
+
+    def _drawn(self, camera: CameraModel) -> CameraModel:
+        """The pinhole camera the passes are drawn with: ``camera`` itself, or its lens's canvas
+        (:mod:`harness.render.distortion`)."""
+        return camera if self._lens is None else self._lens.canvas(camera)
 
     def _shade(self, albedo: np.ndarray, normals: np.ndarray, light: np.ndarray) -> np.ndarray:
         """Face colours (0..1 sRGB) under this scenario's light (and time of day, with ``conditions``)."""
@@ -247,17 +260,18 @@ class Renderer:
             hbin = int(round(yaw / HEADING_BIN_RAD))
             entry = self._vehicles.get(v.id)
             pose = geometry.vehicle_pose_world(v, self._profile, self._plan)
-            if entry is None or entry.dims != dims:
+            if entry is None or entry.dims != dims or entry.body != v.body:
                 if entry is not None:
                     self._scene.remove_node(entry.node)
                     if entry.shadow_node is not None:
                         self._scene.remove_node(entry.shadow_node)
                 if self._real is None:
                     color = meshes.vehicle_color(self._palette_seed, v.id)
-                    entry = _Vehicle(None, dims, *meshes.vehicle_faces(v.length, v.width, color), hbin)
+                    entry = _Vehicle(None, dims, *meshes.vehicle_faces(v.length, v.width, color, body=v.body), hbin,
+                                     body=v.body)
                 else:
-                    parts = self._real.vehicle_parts(v.length, v.width, v.id)
-                    entry = _Vehicle(None, dims, parts.triangles, parts.normals, parts.albedo, hbin, parts)
+                    parts = self._real.vehicle_parts(v.length, v.width, v.id, v.body)
+                    entry = _Vehicle(None, dims, parts.triangles, parts.normals, parts.albedo, hbin, parts, body=v.body)
                     self._set_shadow(entry, pose)
                 entry.node = _add_mesh(self._scene, self._vehicle_mesh(entry), pose=pose)
                 self._vehicles[v.id] = entry
@@ -282,7 +296,7 @@ class Renderer:
             if far != entry.far:
                 entry.far = far
                 make = self._real.far_parts if far else self._real.vehicle_parts
-                entry.parts = make(v.length, v.width, v.id)
+                entry.parts = make(v.length, v.width, v.id, v.body)
                 entry.triangles, entry.normals, entry.albedo = entry.parts.triangles, entry.parts.normals, entry.parts.albedo
                 entry.node.mesh = self._vehicle_mesh(entry)
 
@@ -312,7 +326,7 @@ class Renderer:
         if self._pr is None:
             raise RuntimeError("Renderer is closed")
         self._move_camera(world)
-        c = self.frame_camera
+        c = self._drawn(self.frame_camera)
         vehicles = tuple(world.vehicles)
         nodes = self._sync_vehicles(vehicles)
         cam_pose = geometry.camera_pose_world(world.ego, c, self._profile, self._plan)
@@ -320,7 +334,7 @@ class Renderer:
         if self._real is not None:
             self._real.follow_camera(self._scene, cam_pose)
             self._level_of_detail(vehicles, cam_pose[:3, 3])
-        heights = np.array([vehicle_height(v.length, v.width) for v in vehicles])
+        heights = np.array([vehicle_height(v.length, v.width, v.body) for v in vehicles])
         corners_cam = c.ego_to_cam(geometry.vehicle_corners_ego(vehicles, world.ego, c, heights, self._profile,
                                                                   self._plan))
         boxes = visibility.projected_boxes(corners_cam, c, ZNEAR_M)
@@ -335,7 +349,7 @@ class Renderer:
     def render(self, world: WorldState) -> RenderedFrame:
         """Colour image, id mask and unoccluded pixel counts of one world state."""
         vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
-        c = self.frame_camera
+        c = self._drawn(self.frame_camera)
         self._set_intrinsics(c.fx, c.fy, c.cx, c.cy)
         with self._gl():
             self._passes.update(self._scene)
@@ -354,6 +368,10 @@ class Renderer:
             else:
                 id_mask = np.full((c.height, c.width), -1, dtype=np.int32)
             full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn, also=hidden_by_roadside)
+        if self._lens is not None:   # the pinhole canvas onto the distorted image
+            canvas_ids, id_mask = id_mask, self._lens.nearest(id_mask)
+            bgr, depth = self._lens.linear(bgr), None if depth is None else self._lens.nearest(depth)
+            full = self._lens.full_pixels(full, canvas_ids, id_mask)
         if self._lighting is None:
             image = apply_sensor(bgr, self._noise_std, self._blur_px,
                                  self._seed, world.frame)
@@ -363,13 +381,13 @@ class Renderer:
                                   self._lighting, self._ray_factor)
         if self._real is not None:
             image = self._real.sensor(image, world.frame)
-        return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else c)
+        return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else self.frame_camera)
 
     def _full_pixels(self, id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=False,
                      also: np.ndarray | None = None) -> dict[int, float]:
         """Unoccluded, unbounded pixel count of every vehicle visible in ``id_mask``; ``also``: (N,) bool,
         vehicles to render unoccluded besides those the shortcut picks (e.g. hidden by the roadside)."""
-        c = self.frame_camera
+        c = self._drawn(self.frame_camera)
         counts = np.bincount((id_mask + 1).ravel())
         visible = np.flatnonzero(counts[1:]).tolist()
         index = {v.id: i for i, v in enumerate(vehicles)}
@@ -393,7 +411,8 @@ class Renderer:
 
     def full_pixels_rendered(self, world: WorldState, id_mask: np.ndarray) -> dict[int, float]:
         """Like ``RenderedFrame.full_pixels`` but every vehicle through a sub-window render
-        (no shortcut for unhidden vehicles); for tests and checks."""
+        (no shortcut for unhidden vehicles); for tests and checks (a pinhole camera's: with a lens,
+        ``id_mask`` and the counts are the canvas's)."""
         vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
         with self._gl():
             self._passes.update(self._scene)

@@ -7,9 +7,12 @@ are vehicle centres, ``x`` along the road (m), ``y`` across it (m).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
+from harness.world.fleet import draw_body, typical_dimensions, vehicle_rng
 
 
 TRAFFIC_MIN_GAP_M = 5.0
@@ -72,6 +75,7 @@ def traffic_slots(
     road_length_m: float,
     length_m: float = 5.0,
     width_m: float = 2.0,
+    sizes: Sequence[tuple[float, float]] | None = None,
 ) -> list[TrafficSlot]:
     """Random traffic placed as highway-env's ``create_random(road, speed, spacing=1/density)`` does.
 
@@ -81,7 +85,8 @@ def traffic_slots(
     vehicles are behind it and the rest ahead. A slot whose rectangle (grown by
     :data:`TRAFFIC_MIN_GAP_M` front and back) meets an ``occupied`` one or an earlier
     slot tries the other lanes in random order, then moves one more headway ahead.
-    Deterministic for the state of ``rng``.
+    Deterministic for the state of ``rng``. ``sizes``: per vehicle (length, width) (m) instead of
+    ``length_m`` x ``width_m`` for all (a mixed fleet, :func:`fleet_sizes`).
     """
     lo, hi = speed_range_mps
     spacing = 1.0 / density
@@ -94,6 +99,8 @@ def traffic_slots(
         offset = create_random_offset(speed, spacing, lanes)
         if k > 0:
             x += offset * rng.uniform(0.9, 1.1)
+        if sizes is not None:
+            length_m, width_m = sizes[k]
         while True:
             if x + length_m / 2 > road_length_m:
                 raise ValueError(f"only {k} of {count} traffic vehicles fit on the {road_length_m:g} m road")
@@ -107,3 +114,21 @@ def traffic_slots(
         taken.append(Footprint(x, lane * lane_width_m, length_m, width_m))
         slots.append(TrafficSlot(lane, float(x), speed))
     return slots
+
+
+def fleet_sizes(seed: int, first_id: int, count: int) -> list[tuple[str, float, float]]:
+    """(body, length m, width m) of the traffic vehicles ``first_id .. first_id + count - 1`` of a mixed fleet,
+    each drawn by :func:`harness.world.fleet.draw_body` from its own generator (scenario seed, vehicle id)."""
+    return [draw_body(vehicle_rng(seed, first_id + k)) for k in range(count)]
+
+
+def placed_size(length_m: float | None, width_m: float | None, body: str | None, seed: int,
+                vehicle_id: int) -> tuple[float, float]:
+    """A placed vehicle's (length, width) in m: those given; those absent drawn from ``body``'s typical
+    dimensions (:func:`harness.world.fleet.typical_dimensions`, seeded by the scenario seed and its id)."""
+    if length_m is not None and width_m is not None:
+        return float(length_m), float(width_m)
+    if body is None:
+        raise ValueError("a placed vehicle without a body needs length_m and width_m")
+    length, width = typical_dimensions(body, vehicle_rng(seed, vehicle_id))
+    return (length if length_m is None else float(length_m)), (width if width_m is None else float(width_m))

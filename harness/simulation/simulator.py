@@ -2,7 +2,10 @@
 
 ``Simulation(scenario)`` builds the road (:mod:`.road`), the ego (id 0), the
 placed vehicles (ids 1..P in file order) and the random traffic (ids P+1..N in
-placement order) — deterministically for ``scenario.seed``. With ``traffic.warmup_s``
+placement order) — deterministically for ``scenario.seed``. With ``traffic.fleet: mixed`` each random
+vehicle's body type and footprint come from :func:`harness.world.fleet.draw_body` (its own generator: the
+seed and its id, so the placement's stream is the same draws), and a placed vehicle with a ``body`` but no
+size gets the type's typical one; highway-env's ``LENGTH``/``WIDTH`` are set to the footprint. With ``traffic.warmup_s``
 the world first runs that long (frames ``-W .. -1``, not shown), so frame 0 is the traffic
 after the placement's braking wave; road features are placed from the camera at frame 0. Each
 :meth:`Simulation.step` runs ``road.act(); road.step(dt)`` exactly once with
@@ -19,8 +22,8 @@ import numpy as np
 from harness.world import scenario as sc
 from harness.world.scenario import ScenarioError
 from harness.simulation.events import timed_events
-from harness.simulation.placement import (ROAD_START_MARGIN_M, Footprint, cut_in_distance, placed_centre_x,
-                                          traffic_slots)
+from harness.simulation.placement import (ROAD_START_MARGIN_M, Footprint, cut_in_distance, fleet_sizes,
+                                          placed_centre_x, placed_size, traffic_slots)
 from harness.world.road import EGO_START_X_M, road_plan, road_profile
 from harness.simulation.road import build_road, lane_centre_y
 from harness.simulation.vehicles import Clock, ScenarioVehicle, StationaryVehicle
@@ -110,15 +113,16 @@ class Simulation:
             if p.name in cut_ins:
                 e = cut_ins[p.name]
                 distance = cut_in_distance(e.gap_m, e.at_s, p.speed_mps, s.ego.speed_mps)
-            x = placed_centre_x(EGO_START_X_M, s.camera.forward_offset_m, distance, p.length_m)
+            length, width = placed_size(p.length_m, p.width_m, p.body, s.seed, i)
+            x = placed_centre_x(EGO_START_X_M, s.camera.forward_offset_m, distance, length)
             y = lane_centre_y(s.ego.lane + p.lane, s.road.lane_width_m) + p.lateral_offset_m
             where = f"scenario {s.name!r}: vehicles.{i - 1} ({p.name!r})"
-            if x - p.length_m / 2 < ROAD_START_MARGIN_M:
-                raise ScenarioError(f"{where}: starts {x - p.length_m / 2:.1f} m from the road start; "
+            if x - length / 2 < ROAD_START_MARGIN_M:
+                raise ScenarioError(f"{where}: starts {x - length / 2:.1f} m from the road start; "
                                     f"it must start within {EGO_START_X_M - ROAD_START_MARGIN_M:.0f} m behind the ego")
-            if x + p.length_m / 2 > s.road.length_m:
+            if x + length / 2 > s.road.length_m:
                 raise ScenarioError(f"{where}: starts beyond the end of the {s.road.length_m:g} m road")
-            fp = Footprint(x, y, p.length_m, p.width_m)
+            fp = Footprint(x, y, length, width)
             for other, name in zip(footprints, names):
                 if fp.overlaps(other):
                     raise ScenarioError(f"{where}: overlaps {name} at t = 0 (camera-to-rear distance {distance:.2f} m)")
@@ -127,26 +131,31 @@ class Simulation:
             pos = np.array([x, y])
             if p.behaviour == "stationary":
                 out.append(StationaryVehicle(self.road, pos, vid=i, name=p.name,
-                                             length=p.length_m, width=p.width_m))
+                                             length=length, width=width, body=p.body))
             else:
                 out.append(ScenarioVehicle(position=pos, speed=p.speed_mps, vid=i, name=p.name,
                                            behaviour=p.behaviour, lane_changes=p.lane_changes,
-                                           length=p.length_m, width=p.width_m, **self._vehicle_kwargs()))
+                                           length=length, width=width, body=p.body, **self._vehicle_kwargs()))
                 out[-1].lateral_offset_m = p.lateral_offset_m
         return out, footprints
 
     def _make_traffic(self, rng: np.random.Generator, occupied: list[Footprint]) -> list[ScenarioVehicle]:
         s, t = self.scenario, self.scenario.traffic
+        first = len(s.vehicles) + 1
+        # a mixed fleet: each vehicle's body and footprint from its own generator (the slots' stream untouched)
+        fleet = fleet_sizes(s.seed, first, t.vehicles_count) if t.fleet == "mixed" else None
         try:
             slots = traffic_slots(rng, t.vehicles_count, s.road.lanes, s.road.lane_width_m, t.density,
-                                  t.speed_range_mps, occupied, EGO_START_X_M, s.road.length_m)
+                                  t.speed_range_mps, occupied, EGO_START_X_M, s.road.length_m,
+                                  sizes=None if fleet is None else [(le, w) for _, le, w in fleet])
         except ValueError as e:
             raise ScenarioError(f"scenario {s.name!r}: traffic.vehicles_count: {e}") from None
-        first = len(s.vehicles) + 1
+        shapes = ([{} for _ in slots] if fleet is None
+                  else [{"body": body, "length": le, "width": w} for body, le, w in fleet])
         return [ScenarioVehicle(position=np.array([slot.x, lane_centre_y(slot.lane, s.road.lane_width_m)]),
                                 speed=slot.speed, vid=first + k, name=None, behaviour="idm",
-                                lane_changes=t.lane_changes, **self._vehicle_kwargs())
-                for k, slot in enumerate(slots)]
+                                lane_changes=t.lane_changes, **shape, **self._vehicle_kwargs())
+                for k, (slot, shape) in enumerate(zip(slots, shapes))]
 
 
 def simulate(scenario: sc.Scenario, n_frames: int | None = None) -> Iterator[WorldState]:
@@ -177,7 +186,9 @@ def vehicle_state(v: ScenarioVehicle | StationaryVehicle) -> VehicleState:
     return VehicleState(
         id=v.vid, x=float(v.position[0]), y=float(v.position[1]), heading=float(v.heading),
         speed=float(v.speed), vx=float(vx), vy=float(vy), lane=int(v.lane_index[2]),
-        length=float(v.LENGTH), width=float(v.WIDTH), crashed=bool(v.crashed), name=v.name)
+        length=float(v.LENGTH), width=float(v.WIDTH), crashed=bool(v.crashed), name=v.name,
+        body=getattr(v, "body", None))
+
 
 
 # -------------------------------------------------------------------- checks

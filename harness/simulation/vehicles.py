@@ -112,10 +112,12 @@ class ScenarioVehicle(IDMVehicle):
         mobil: sc.MOBILParams,
         length: float = Vehicle.LENGTH,
         width: float = Vehicle.WIDTH,
+        body: str | None = None,
     ) -> None:
         # Per-instance size before RoadObject.__init__ derives the collision diagonal from it.
         self.LENGTH = float(length)
         self.WIDTH = float(width)
+        self.body = body
         super().__init__(road, position, heading=0.0, speed=float(speed), enable_lane_change=False)
         self.MAX_SPEED = MAX_SPEED_MPS
         self.COMFORT_ACC_MAX = idm.a_max
@@ -184,9 +186,10 @@ class StationaryVehicle(Obstacle):
     """A parked vehicle: speed 0, never moves; an obstacle IDM/MOBIL vehicles react to."""
 
     def __init__(self, road: Road, position: np.ndarray, *, vid: int, name: str | None,
-                 length: float = Vehicle.LENGTH, width: float = Vehicle.WIDTH) -> None:
+                 length: float = Vehicle.LENGTH, width: float = Vehicle.WIDTH, body: str | None = None) -> None:
         self.LENGTH = float(length)
         self.WIDTH = float(width)
+        self.body = body
         super().__init__(road, position, heading=0.0, speed=0.0)
         self.vid = vid
         self.name = name

@@ -87,7 +87,7 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
     record = FrameTruth(frame=int(world.frame), t=float(world.t), ego=ego_truth, camera=pose)
     if not vehicles:
         return record
-    heights = np.array([vehicle_height(v.length, v.width) for v in vehicles])
+    heights = np.array([vehicle_height(v.length, v.width, v.body) for v in vehicles])
     corners_ego = vehicle_corners_ego(vehicles, ego, camera, heights, world.profile, world.plan)   # (N, 8, 3)
     foot = corners_ego[:, :4, :2]                                                # (N, 4, 2)
     corners_cam = camera.ego_to_cam(corners_ego)                                 # (N, 8, 3)
@@ -122,6 +122,7 @@ def frame_truth(world: WorldState, camera: CameraModel, id_mask, full_pixels: Ma
             corners_cam=tuple(map(tuple, corners_cam[k].round(6).tolist())),
             length=float(v.length),
             width=float(v.width),
+            body=v.body,
             crashed=bool(v.crashed),
             s_long=s_long[k],
             s_lat=s_lat[k],

@@ -146,6 +146,9 @@ class Traffic(_Model):
     warmup_s: float = Field(0.0, ge=0, le=60, description=(
         "the world simulated this long (s) before frame 0, so that the braking wave of the placement is "
         "over when the camera starts (placed vehicles' distance_m hold at its start); 0: frame 0 is the placement"))
+    fleet: Literal["none", "mixed"] = Field("none", description=(
+        "none: every traffic vehicle is highway-env's 5 m x 2 m car; mixed: each gets a body type and footprint "
+        "drawn from motorway fleet shares (harness.world.fleet), seeded by the scenario seed and its id"))
 
     @model_validator(mode="after")
     def _range(self) -> "Traffic":
@@ -159,6 +162,8 @@ class Traffic(_Model):
         data = handler(self)
         if not self.warmup_s:   # no warm-up dumps as before the field existed
             data.pop("warmup_s", None)
+        if self.fleet == "none":   # so does the default fleet
+            data.pop("fleet", None)
         return data
 
 
@@ -185,10 +190,29 @@ class PlacedVehicle(_Model):
     speed_mps: float = Field(0.0, ge=0, le=60)
     behaviour: Behaviour = "idm"
     lane_changes: bool = False
-    length_m: float = Field(5.0, ge=3.0, le=20.0)
-    width_m: float = Field(2.0, ge=1.4, le=3.0)
+    length_m: float | None = Field(None, ge=3.0, le=20.0, description=(
+        "m; absent: 5.0, or with a body drawn from the type's typical dimensions (harness.world.fleet)"))
+    width_m: float | None = Field(None, ge=1.4, le=3.0, description="m, mirrors included; absent: as length_m")
     lateral_offset_m: float = Field(0.0, ge=-2.0, le=2.0, description=(
         "offset of its centre from its lane's centre line, + right; held until a cut_in moves it"))
+    body: Literal["hatchback", "saloon", "estate", "suv", "van", "pickup", "box_truck", "artic", "bus"] | None = Field(
+        None, description="body type (harness.world.vehicles.BODY_TYPES); null: the footprint decides the shape")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_size(cls, data: Any) -> Any:
+        """Without a body an absent (or null) size is highway-env's 5 m x 2 m, as before the body existed."""
+        if isinstance(data, dict) and data.get("body") is None:
+            data = {**data, "length_m": 5.0 if data.get("length_m") is None else data["length_m"],
+                    "width_m": 2.0 if data.get("width_m") is None else data["width_m"]}
+        return data
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        data = handler(self)
+        if self.body is None:   # a vehicle without a body dumps as before the field existed
+            data.pop("body", None)
+        return data
 
 
 class BrakeEvent(_Model):
@@ -233,11 +257,15 @@ class Camera(_Model):
     pitch_deg: float = Field(2.0, ge=-30, le=30, description="positive tilts the camera down")
     lateral_offset_m: float = Field(0.0, ge=-2, le=2)
     forward_offset_m: float = Field(0.5, ge=-3, le=3, description="from the ego vehicle's centre")
+    distortion: tuple[FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat, FiniteFloat] | None = Field(None, description=(
+        "OpenCV lens distortion [k1, k2, p1, p2, k3] (monorarp.core.distortion); null: a pinhole lens"))
 
     def model(self) -> CameraModel:
         """The shared :class:`CameraModel` this spec describes."""
         mount = dict(height_m=self.height_m, pitch_rad=math.radians(self.pitch_deg),
                      lateral_offset_m=self.lateral_offset_m, forward_offset_m=self.forward_offset_m)
+        if self.distortion is not None:
+            mount["distortion"] = tuple(self.distortion)
         if self.focal_px is not None:
             return CameraModel(self.width, self.height, self.focal_px, self.focal_px,
                                (self.width - 1) / 2, (self.height - 1) / 2, **mount)
@@ -252,6 +280,13 @@ class Camera(_Model):
         except CameraError as e:
             raise ValueError(str(e)) from None
         return self
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        data = handler(self)
+        if self.distortion is None:   # a pinhole camera dumps as before the field existed
+            data.pop("distortion", None)
+        return data
 
 
 class Render(_Model):

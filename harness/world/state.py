@@ -31,6 +31,7 @@ class VehicleState:
     width: float            # m
     crashed: bool = False
     name: str | None = None  # scenario name for placed vehicles
+    body: str | None = None  # body type (harness.world.vehicles.BODY_TYPES); None: the footprint decides
 
 
 @dataclass(frozen=True)

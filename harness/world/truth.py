@@ -7,7 +7,8 @@ What each field means (frames, units, how it is computed) is written once, in
 :meth:`FrameTruth.to_json` gives the JSON-ready dict, keys in this order: ``frame``, ``t``, ``ego``
 (``speed``, ``x``, ``y``, ``heading``, ``lane``, ``crashed``), ``objects`` (``id``, ``name``,
 ``box``, ``visibility``, ``d_long``, ``d_lat``, ``v_long``, ``v_lat``, ``ttc``, ``lane_rel``,
-``corners_cam``, ``length``, ``width``, ``crashed``, and ``counted`` only when set; ``s_long``
+``corners_cam``, ``length``, ``width``, ``body`` only when set (a fleet's body type), ``crashed``, and
+``counted`` only when set; ``s_long``
 follows ``d_long`` only on a road with a vertical profile or curves, ``s_lat`` follows ``d_lat`` only
 on a curved road), then
 ``camera`` (a moving camera only). :meth:`FrameTruth.from_json` reads it back; optional fields
@@ -46,6 +47,7 @@ class ObjectTruth:
     counted: bool | None = None                 # a labelled dataset's own "must be found" flag
     s_long: float | None = None                 # along-road distance, camera's foot point to rear face (profile, curves)
     s_lat: float | None = None                  # along-road lateral offset of the rear face, + right (curves only)
+    body: str | None = None                     # body type (harness.world.vehicles.BODY_TYPES); None: by footprint
 
     def to_json(self) -> dict[str, Any]:
         d = {"id": self.id, "name": self.name, "box": list(self.box), "visibility": self.visibility,
@@ -58,7 +60,10 @@ class ObjectTruth:
         d |= {"v_long": self.v_long, "v_lat": self.v_lat,
               "ttc": self.ttc, "lane_rel": self.lane_rel,
               "corners_cam": None if self.corners_cam is None else [list(c) for c in self.corners_cam],
-              "length": self.length, "width": self.width, "crashed": self.crashed}
+              "length": self.length, "width": self.width}
+        if self.body is not None:
+            d["body"] = self.body
+        d["crashed"] = self.crashed
         if self.counted is not None:
             d["counted"] = self.counted
         return d
@@ -73,7 +78,8 @@ class ObjectTruth:
                    corners_cam=None if corners is None else tuple(tuple(float(v) for v in c) for c in corners),
                    length=_opt(d.get("length"), float), width=_opt(d.get("width"), float),
                    crashed=bool(d.get("crashed", False)), counted=_opt(d.get("counted"), bool),
-                   s_long=_opt(d.get("s_long"), float), s_lat=_opt(d.get("s_lat"), float))
+                   s_long=_opt(d.get("s_long"), float), s_lat=_opt(d.get("s_lat"), float),
+                   body=_opt(d.get("body"), str))
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,12 @@ Frames (all right-handed, SI units):
   axis. The camera is pitched down by ``pitch_rad`` about its ``x`` axis and has
   no yaw relative to the ego vehicle (roll: ``roll_rad``, below).
 * **Pixels** (OpenCV): ``u`` right, ``v`` down, pixel centres at integer
-  coordinates, no distortion.
+  coordinates. *Ideal* pixels are the pinhole projection ``u = fx X / Z + cx``; a camera with lens
+  distortion (``distortion``: OpenCV's ``k1, k2, p1, p2, k3``, :mod:`monorarp.core.distortion`; default
+  all 0, a pure pinhole) sees them at the *distorted* pixels :meth:`CameraModel.distort_pixels` gives.
+  :meth:`CameraModel.project_cam` gives image (distorted) pixels and
+  :meth:`CameraModel.ground_point_from_pixel` takes them; everything else here (``K``, ``horizon_row``)
+  is the pinhole part. :attr:`CameraModel.pinhole` is the camera without its distortion.
 
 Roll (``roll_rad``, default 0): the camera turned about its optical axis after the
 pitch, positive clockwise as seen from behind the camera (its right side dips;
@@ -32,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from monorarp.core import distortion as _lens
 from monorarp.core.errors import UserError
 
 
@@ -48,7 +54,7 @@ _FILE_NUMBERS = ("fx", "fy", "cx", "cy", "hfov_deg", "height_m", "pitch_rad", "p
                  "lateral_offset_m", "forward_offset_m", "roll_rad", "roll_deg")
 #: every key a camera file may hold: the documented ones (docs/formats.md) and all that :meth:`CameraModel.to_dict`
 #: writes (``camera.json``: K beside fx/fy/cx/cy, the derived horizon_row, roll_rad when not 0); others are refused
-FILE_KEYS = ("width", "height", "K", *_FILE_NUMBERS)
+FILE_KEYS = ("width", "height", "K", *_FILE_NUMBERS, "distortion")
 #: largest deviation of K's fixed entries (``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``) taken as float noise
 _K_TOL = 1e-9
 
@@ -102,6 +108,14 @@ def _intrinsic_matrix(K: np.ndarray) -> None:
                               "intrinsic matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]")
 
 
+def _distortion_list(value: object) -> tuple[float, ...]:
+    """A camera file's ``distortion`` (4 or 5 numbers) as a tuple of floats; :class:`CameraError` otherwise."""
+    items = value.tolist() if isinstance(value, np.ndarray) else value
+    if not (isinstance(items, (list, tuple)) and len(items) in (4, 5)):
+        raise CameraError(f"distortion must be a list [k1, k2, p1, p2, k3] (or [k1, k2, p1, p2]), got {_show(value)}")
+    return tuple(_number(x, f"distortion[{i}]") for i, x in enumerate(items))
+
+
 def _unknown_keys(d: dict) -> str | None:
     """The problem with keys of ``d`` a camera file may not hold (a typo such as ``pitch_dg`` would
     otherwise leave its field at the default unnoticed), or None."""
@@ -147,10 +161,19 @@ class CameraModel:
     lateral_offset_m: float = 0.0
     forward_offset_m: float = 0.0
     roll_rad: float = 0.0
+    #: OpenCV lens distortion ``(k1, k2, p1, p2, k3)``; all 0: a pure pinhole (:mod:`monorarp.core.distortion`)
+    distortion: tuple[float, float, float, float, float] = _lens.ZERO
 
     def __post_init__(self) -> None:
+        if self.distortion is not _lens.ZERO:
+            try:
+                object.__setattr__(self, "distortion", _lens.coefficients(self.distortion))
+            except (TypeError, ValueError) as e:
+                raise CameraError(f"distortion: {e}") from None
         problems = [f"{name} must be finite, got {getattr(self, name)}" for name in _FINITE
                     if not math.isfinite(getattr(self, name))]
+        problems += [f"distortion must be finite, got {list(self.distortion)}"] \
+            if not all(math.isfinite(x) for x in self.distortion) else []
         if problems:    # NaN or inf would pass (or confuse) the range checks below
             raise CameraError("; ".join(problems))
         if self.width <= 0 or self.height <= 0:
@@ -172,6 +195,10 @@ class CameraModel:
                 f"horizon row {self.horizon_row:.1f} px lies outside the image (0..{self.height - 1}); "
                 "check pitch and cy"
             )
+        if not problems and self.distorted:
+            why = _lens.check(self.width, self.height, self.fx, self.fy, self.cx, self.cy, self.distortion)
+            if why:
+                problems.append(why)
         if problems:
             raise CameraError("; ".join(problems))
 
@@ -187,13 +214,14 @@ class CameraModel:
         lateral_offset_m: float = 0.0,
         forward_offset_m: float = 0.0,
         roll_rad: float = 0.0,
+        distortion: tuple[float, ...] = _lens.ZERO,
     ) -> "CameraModel":
-        """Square pixels, principal point at the image centre, horizontal FOV in degrees."""
+        """Square pixels, principal point at the image centre, horizontal FOV in degrees (of the pinhole part)."""
         if not 1.0 < hfov_deg < 179.0:
             raise CameraError(f"horizontal FOV must be in (1, 179) deg, got {hfov_deg}")
         f = (width / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
         return cls(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0,
-                   height_m, pitch_rad, lateral_offset_m, forward_offset_m, roll_rad)
+                   height_m, pitch_rad, lateral_offset_m, forward_offset_m, roll_rad, distortion)
 
     def scaled(self, width: int, height: int) -> "CameraModel":
         """The same camera at another resolution (intrinsics scaled, mounting kept)."""
@@ -206,6 +234,16 @@ class CameraModel:
     def K(self) -> np.ndarray:
         """3x3 intrinsic matrix, OpenCV convention."""
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def distorted(self) -> bool:
+        """True when the camera has lens distortion (any coefficient non-zero)."""
+        return any(self.distortion)
+
+    @property
+    def pinhole(self) -> "CameraModel":
+        """This camera without its lens distortion (itself when it has none)."""
+        return replace(self, distortion=_lens.ZERO) if self.distorted else self
 
     @property
     def horizon_row(self) -> float:
@@ -239,10 +277,29 @@ class CameraModel:
         return np.asarray(points_cam, dtype=float) @ self.R_cam_from_ego
 
     def project_cam(self, points_cam: np.ndarray) -> np.ndarray:
-        """(..., 3) camera-frame points with z > 0 -> (..., 2) pixels (u, v)."""
+        """(..., 3) camera-frame points with z > 0 -> (..., 2) pixels (u, v), distorted by the lens if any."""
         p = np.asarray(points_cam, dtype=float)
         z = p[..., 2]
-        return np.stack([self.fx * p[..., 0] / z + self.cx, self.fy * p[..., 1] / z + self.cy], axis=-1)
+        uv = np.stack([self.fx * p[..., 0] / z + self.cx, self.fy * p[..., 1] / z + self.cy], axis=-1)
+        return self.distort_pixels(uv) if self.distorted else uv
+
+    def distort_pixels(self, uv: np.ndarray) -> np.ndarray:
+        """(..., 2) ideal (pinhole) pixels -> (..., 2) pixels of the distorted image (``cv2.projectPoints``)."""
+        uv = np.asarray(uv, dtype=float)
+        if not self.distorted:
+            return uv.copy()
+        xy = np.stack([(uv[..., 0] - self.cx) / self.fx, (uv[..., 1] - self.cy) / self.fy], axis=-1)
+        d = _lens.distort(xy, self.distortion)
+        return np.stack([d[..., 0] * self.fx + self.cx, d[..., 1] * self.fy + self.cy], axis=-1)
+
+    def undistort_pixels(self, uv: np.ndarray) -> np.ndarray:
+        """(..., 2) pixels of the distorted image -> (..., 2) ideal pixels (``cv2.undistortPoints`` with ``P = K``)."""
+        uv = np.asarray(uv, dtype=float)
+        if not self.distorted:
+            return uv.copy()
+        xy = np.stack([(uv[..., 0] - self.cx) / self.fx, (uv[..., 1] - self.cy) / self.fy], axis=-1)
+        p = _lens.undistort(xy, self.distortion)
+        return np.stack([p[..., 0] * self.fx + self.cx, p[..., 1] * self.fy + self.cy], axis=-1)
 
     def project_ego(self, points_ego: np.ndarray) -> np.ndarray:
         """(..., 3) ego-frame points -> (..., 2) pixels."""
@@ -251,10 +308,13 @@ class CameraModel:
     def ground_point_from_pixel(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Intersect the rays through pixels (u, v) with the ground plane.
 
-        Returns (..., 3) ego-frame points; rows at or above the horizon give NaN.
+        Returns (..., 3) ego-frame points; rows at or above the horizon give NaN. Pixels of a
+        distorted camera are undistorted first.
         """
         u = np.asarray(u, dtype=float)
         v = np.asarray(v, dtype=float)
+        if self.distorted:
+            u, v = np.moveaxis(self.undistort_pixels(np.stack(np.broadcast_arrays(u, v), axis=-1)), -1, 0)
         rays_cam = np.stack([(u - self.cx) / self.fx, (v - self.cy) / self.fy, np.ones_like(u)], axis=-1)
         rays_ego = self.cam_to_ego(rays_cam)
         down = -rays_ego[..., 2]
@@ -268,6 +328,10 @@ class CameraModel:
         d = asdict(self)
         if d["roll_rad"] == 0.0:      # a calibration has no roll: keep camera.json as it was
             del d["roll_rad"]
+        if self.distorted:            # likewise a pinhole's has no distortion key
+            d["distortion"] = list(self.distortion)
+        else:
+            del d["distortion"]
         d["K"] = self.K.tolist()
         d["horizon_row"] = self.horizon_row
         return d
@@ -278,7 +342,8 @@ class CameraModel:
 
         Accepted keys: width, height; either K (3x3) or fx, fy, cx, cy, or hfov_deg;
         height_m; pitch_rad or pitch_deg, or horizon_row (px; pitch = atan((cy - horizon_row) / fy));
-        lateral_offset_m; forward_offset_m; roll_rad or roll_deg (default 0). When both a pitch and ``horizon_row`` are given
+        lateral_offset_m; forward_offset_m; roll_rad or roll_deg (default 0); distortion (OpenCV's
+        ``[k1, k2, p1, p2, k3]`` or ``[k1, k2, p1, p2]``, default none). When both a pitch and ``horizon_row`` are given
         (as in ``camera.json``) they must agree within 1 px, and fx/fy/cx/cy given with K must equal K's.
         Every numeric field must be a finite number (not a bool or a string; width and height whole pixels);
         an optional field that is null counts as not given. ``K`` must be ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``.
@@ -324,6 +389,8 @@ class CameraModel:
         mount = dict(height_m=n["height_m"], pitch_rad=pitch,
                      lateral_offset_m=n.get("lateral_offset_m", 0.0),
                      forward_offset_m=n.get("forward_offset_m", 0.0), roll_rad=roll)
+        if "distortion" in d:
+            mount["distortion"] = _distortion_list(d["distortion"])
         if K is not None:
             for name, (i, j) in (("fx", (0, 0)), ("fy", (1, 1)), ("cx", (0, 2)), ("cy", (1, 2))):
                 # camera.json holds both: an edit to one of them alone must not pass unnoticed

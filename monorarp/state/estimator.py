@@ -29,6 +29,7 @@ from monorarp.state.ground_contact import contact_ground
 from monorarp.state.kind import TrackKinds
 from monorarp.state.measurement import (NearEdgeOffsets, border_cut_boxes, border_tolerance, distance_std, grade_gain,
                                         horizon_gain, near_limit_m, plausible_boxes)
+from monorarp.state.pinhole_view import pinhole_view
 from monorarp.state.noise import MeasurementNoise, ProcessNoise, bias_variance, prior_variance
 from monorarp.state.scale_change import LoomingRegistration, RateWindow, lateral_displacement
 from monorarp.state.size_prior import SIZE_PRIORS, fuse, ground_fit, height_distance, priors_of, width_distance
@@ -295,6 +296,8 @@ class StateEstimator:
 
     def _update(self, tracks: Sequence[Track], t: float, horizon_std_px: float,
                 image: np.ndarray | None = None) -> dict[int, ObjectState]:
+        if self.camera.distorted:     # lens distortion: the geometry in the ideal pinhole canvas
+            return self._pinhole_update(tracks, t, horizon_std_px, image)
         c = self.config
         t = float(t)
         if not np.isfinite(t):
@@ -331,6 +334,20 @@ class StateEstimator:
                                        image)
         out = self._filter.update(ids, d_y, terms, known, ok, t)
         return {tid: ObjectState(tid, *map(float, row)) for tid, row, good in zip(ids, out, ok) if good}
+
+    def _pinhole_update(self, tracks: Sequence[Track], t: float, horizon_std_px: float,
+                        image: np.ndarray | None) -> dict[int, ObjectState]:
+        """:meth:`_update` for a distorted camera: the tracks' boxes and the image in its virtual pinhole camera
+        (:mod:`monorarp.state.pinhole_view`). A measured road profile (rows of the distorted image) is not used."""
+        real, profile = self.camera, self._profile
+        view = pinhole_view(real, self.border_tol_px)
+        boxes = view.boxes(np.array([tr.box for tr in tracks], dtype=float).reshape(-1, 4))
+        ideal = [replace(tr, box=tuple(float(x) for x in b)) for tr, b in zip(tracks, boxes)]
+        self.camera, self._profile = view.virtual(real), None
+        try:
+            return self._update(ideal, t, horizon_std_px, None if image is None else view.image(image))
+        finally:
+            self.camera, self._profile = real, profile
 
     def _kalman_states(self, kf: KalmanTracks, ids: list[int], boxes: np.ndarray, d_y: np.ndarray,
                        terms: np.ndarray, coasting: np.ndarray, known: np.ndarray, ok: np.ndarray, t: float,
