@@ -133,14 +133,15 @@ def test_dome_follows_the_camera_and_far_cells_are_not_drawn(renderer):
     renderer.render(_world())
     real = renderer._real
     cam = renderer._scene.get_pose(renderer._cam_node)
-    np.testing.assert_allclose(renderer._scene.get_pose(real.dome_node)[:3, 3], cam[:3, 3])
+    for node in real.dome_nodes:
+        np.testing.assert_allclose(renderer._scene.get_pose(node)[:3, 3], cam[:3, 3])
     eye = cam[:2, 3]
     for node, centre in real._cells:
         behind = (centre - eye) @ -cam[:2, 2] < -100
         if behind:
             assert not node.mesh.is_visible
     assert any(n.mesh.is_visible for n, _ in real._cells) or not real._cells
-    assert isinstance(real.dome_node.mesh, pyrender.Mesh)
+    assert all(isinstance(n.mesh, pyrender.Mesh) for n in real.dome_nodes) and len(real.dome_nodes) > 1
 
 
 def test_far_vehicles_use_the_simple_mesh_with_hysteresis():

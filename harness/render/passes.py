@@ -9,6 +9,12 @@ up once per program, node poses and the draw order once per frame, and each fram
 (colour, resolved, ids) is kept and only grown, where pyrender reallocated its own whenever
 the size changed (every sub-window id pass).
 
+Per frame (:meth:`Passes.update`) only the nodes visible then are posed and ordered (poses read
+straight from a root child's matrix, the product pyrender's ``get_pose`` forms without its networkx
+path search); a pass may be split into its draws (``draw_colour``, ``draw_ids``) and its read
+(``read_colour``, ``read_ids``) so the caller can work while llvmpipe rasterises; an id pass may be
+limited to a region of the frame (scissor: the same codes there, 0 elsewhere).
+
 Draw order (:func:`sorted_mesh_nodes`): far to near as pyrender does, ties in insertion
 order (``node._draw_order``; pyrender iterates a ``set``, so nodes at the same distance,
 like the road meshes all at the origin, were drawn in an order that changed from one
@@ -72,14 +78,27 @@ class _Framebuffer:
         GL.glDeleteRenderbuffers(2, [self.colour, self.depth])
 
 
-def sorted_mesh_nodes(scene: pyrender.Scene, poses: dict) -> list:
-    """Mesh nodes in draw order: solid then transparent, each far to near from the camera, ties in insertion order."""
+def sorted_mesh_nodes(scene: pyrender.Scene, poses: dict, nodes=None) -> list:
+    """Mesh nodes (``nodes``, default all of ``scene``'s) in draw order: solid then transparent, each far to
+    near from the camera, ties in insertion order."""
     cam = poses[scene.main_camera_node][:3, 3]
-    nodes = sorted(scene.mesh_nodes, key=lambda n: getattr(n, "_draw_order", -1))
+    nodes = sorted(scene.mesh_nodes if nodes is None else nodes, key=lambda n: getattr(n, "_draw_order", -1))
     solid = [n for n in nodes if not n.mesh.is_transparent]
     trans = [n for n in nodes if n.mesh.is_transparent]
     far_first = lambda n: -np.linalg.norm(poses[n][:3, 3] - cam)  # noqa: E731
     return sorted(solid, key=far_first) + sorted(trans, key=far_first)
+
+
+_EYE = np.eye(4)
+
+
+def node_pose(scene: pyrender.Scene, node) -> np.ndarray:
+    """``scene.get_pose(node)`` without its networkx path search for a child of the scene's root (every node
+    the renderer adds): the same product ``node.matrix @ eye(4)``, so the same bits."""
+    parents = scene._digraph._succ.get(node)
+    if node._matrix is not None and parents is not None and len(parents) == 1 and "world" in parents:
+        return np.dot(node._matrix, _EYE)
+    return scene.get_pose(node)
 
 
 class Passes:
@@ -91,7 +110,8 @@ class Passes:
         self._fbs: dict[str, _Framebuffer] = {}
         self._locations: dict[tuple[int, str], int] = {}
         self._programs: dict[tuple, object] = {}
-        self._frame: tuple | None = None     # (draw order, poses, V, cam_pos) of the current frame
+        self._frame: tuple | None = None     # (draw order, float32 poses, V, cam_pos) of the current frame
+        self._textures_known = False
 
     def delete(self) -> None:
         """Free the framebuffers (context current)."""
@@ -101,31 +121,39 @@ class Passes:
 
     def update(self, scene: pyrender.Scene) -> None:
         """Upload meshes new to the scene, free removed ones, and take the node poses and draw order
-        for the passes that follow (once per frame, after the poses are set).
+        for the passes that follow (once per frame, after the poses and ``mesh.is_visible`` flags are set:
+        only the nodes visible now are ordered and drawn).
 
-        pyrender's ``_update_context`` without its shadow-map bookkeeping (no shadows)."""
-        inner, meshes = self._inner, scene.meshes
-        for mesh in meshes - inner._meshes:
-            for p in mesh.primitives:
-                p._add_to_context()
-        for mesh in inner._meshes - meshes:
-            for p in mesh.primitives:
-                p.delete()
-        inner._meshes = meshes
-        textures = set()
-        for mesh in meshes:
-            for p in mesh.primitives:
-                textures |= p.material.textures
-        for texture in textures - inner._mesh_textures:
-            texture._add_to_context()
-            self._set_anisotropy(texture)
-        for texture in inner._mesh_textures - textures:
-            texture.delete()
-        inner._mesh_textures = textures
+        pyrender's ``_update_context`` without its shadow-map bookkeeping (no shadows); the textures are
+        gathered again only when the set of meshes changed."""
+        inner, nodes = self._inner, scene.mesh_nodes
+        meshes = {n.mesh for n in nodes}
+        if meshes != inner._meshes or not self._textures_known:
+            for mesh in meshes - inner._meshes:
+                for p in mesh.primitives:
+                    p._add_to_context()
+            for mesh in inner._meshes - meshes:
+                for p in mesh.primitives:
+                    p.delete()
+            inner._meshes = meshes
+            textures = set()
+            for mesh in meshes:
+                for p in mesh.primitives:
+                    textures |= p.material.textures
+            for texture in textures - inner._mesh_textures:
+                texture._add_to_context()
+                self._set_anisotropy(texture)
+            for texture in inner._mesh_textures - textures:
+                texture.delete()
+            inner._mesh_textures = textures
+            self._textures_known = True
         cam_node = scene.main_camera_node
-        poses = {n: scene.get_pose(n) for n in scene.mesh_nodes}
-        poses[cam_node] = scene.get_pose(cam_node)
-        self._frame = (sorted_mesh_nodes(scene, poses), poses, np.linalg.inv(poses[cam_node]),
+        visible = [n for n in nodes if n.mesh.is_visible]
+        poses = {n: node_pose(scene, n) for n in visible}
+        poses[cam_node] = node_pose(scene, cam_node)
+        order = sorted_mesh_nodes(scene, poses, visible)
+        model = {n: np.ascontiguousarray(poses[n], dtype=np.float32) for n in order}
+        self._frame = (order, model, np.linalg.inv(poses[cam_node]).astype(np.float32),
                        poses[cam_node][:3, 3].astype(np.float32))
 
     def _set_anisotropy(self, texture) -> None:
@@ -137,11 +165,15 @@ class Passes:
         GL.glBindTexture(texture.tex_type, 0)
 
     def _program(self, primitive, flags: int):
+        cached = primitive.__dict__.setdefault("_passes_programs", {}).get(flags)
+        if cached is not None and cached[0] is primitive.material and cached[1] is self._programs:
+            return cached[2]
         key = (flags, primitive.buf_flags, type(primitive.material), primitive.material.tex_flags, primitive.mode)
         program = self._programs.get(key)
         if program is None:
             program = self._programs[key] = self._inner._get_primitive_program(primitive, flags,
                                                                                ProgramFlags.USE_MATERIAL)
+        primitive._passes_programs[flags] = (primitive.material, self._programs, program)
         return program
 
     def _fb(self, role: str, width: int, height: int, samples: int = 0) -> _Framebuffer:
@@ -164,8 +196,12 @@ class Passes:
         if loc != -1:
             setter(loc, *args)
 
-    def _draw(self, scene: pyrender.Scene, width: int, height: int, flags: int, seg_node_map: dict | None) -> None:
-        """pyrender's forward pass into the bound framebuffer: same clear, state, uniforms and draw order."""
+    def _draw(self, scene: pyrender.Scene, width: int, height: int, flags: int, seg_node_map: dict | None,
+              scissor: tuple[int, int, int, int] | None = None, small_in_large: bool = False) -> None:
+        """pyrender's forward pass into the bound framebuffer: same clear, state, uniforms and draw order;
+        with ``scissor`` (x, y, w, h, GL window pixels) the draws touch only that rectangle (the clear all of
+        ``width`` x ``height``); ``small_in_large``: the pass covers a small corner of a grown framebuffer, clear
+        only that corner (the pixels read back are the same either way)."""
         seg = bool(flags & RenderFlags.SEG)
         GL.glViewport(0, 0, width, height)
         GL.glEnable(GL.GL_DEPTH_TEST)
@@ -173,7 +209,13 @@ class Passes:
         GL.glDepthFunc(GL.GL_LESS)
         GL.glDepthRange(0.0, 1.0)
         GL.glClearColor(*((0.0, 0.0, 0.0, 1.0) if seg else scene.bg_color))
+        if small_in_large:      # llvmpipe: a scissored clear is a drawn quad, cheaper only on a small part
+            GL.glEnable(GL.GL_SCISSOR_TEST)
+            GL.glScissor(0, 0, width, height)
         GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+        if scissor is not None:
+            GL.glEnable(GL.GL_SCISSOR_TEST)
+            GL.glScissor(*scissor)
         (GL.glDisable if seg else GL.glEnable)(GL.GL_MULTISAMPLE)
         GL.glEnable(GL.GL_CULL_FACE)
         GL.glCullFace(GL.GL_BACK)
@@ -214,6 +256,7 @@ class Passes:
                 GL.glBindVertexArray(0)
         if program is not None:
             GL.glUseProgram(0)
+        GL.glDisable(GL.GL_SCISSOR_TEST)
 
     def _material(self, program, material) -> None:
         """The textures, material uniforms and blend/cull state pyrender sets for a metallic-roughness material."""
@@ -244,9 +287,18 @@ class Passes:
     def colour(self, scene: pyrender.Scene, width: int, height: int,
                want_depth: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
         """(H, W, 3) uint8 BGR image, top row first; with ``want_depth`` also (H, W) float32 window depth 0..1."""
-        ms, out = self._fb("colour", width, height, SAMPLES), self._fb("resolved", width, height)
-        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, ms.fb)
+        self.draw_colour(scene, width, height)
+        return self.read_colour(width, height, want_depth)
+
+    def draw_colour(self, scene: pyrender.Scene, width: int, height: int) -> None:
+        """The first half of :meth:`colour`: issue the draws (llvmpipe rasterises them on its threads while this
+        thread issues the next pass, e.g. :meth:`draw_ids`); :meth:`read_colour` waits for and reads them."""
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._fb("colour", width, height, SAMPLES).fb)
         self._draw(scene, width, height, RenderFlags.FLAT, None)
+
+    def read_colour(self, width: int, height: int, want_depth: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        """The second half of :meth:`colour`: resolve and read the last :meth:`draw_colour` of this size."""
+        ms, out = self._fb("colour", width, height, SAMPLES), self._fb("resolved", width, height)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, ms.fb)
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, out.fb)
         GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
@@ -263,12 +315,44 @@ class Passes:
         dbuf = GL.glReadPixels(0, 0, width, height, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
         return bgr, np.frombuffer(dbuf, dtype=np.float32).reshape(height, width)[::-1]
 
-    def ids(self, scene: pyrender.Scene, width: int, height: int, seg_node_map: dict) -> np.ndarray:
-        """(H, W) uint32 codes R | G << 8 | B << 16 of ``seg_node_map``'s colours (0: nothing), bottom row first."""
-        fb = self._fb("ids", width, height)
+    def ids(self, scene: pyrender.Scene, width: int, height: int, seg_node_map: dict,
+            region: tuple[int, int, int, int] | None = None, role: str = "ids") -> np.ndarray:
+        """(H, W) uint32 codes R | G << 8 | B << 16 of ``seg_node_map``'s colours (0: nothing), bottom row first.
+
+        ``region``: (x0, y0, x1, y1), image pixels (columns x0..x1 - 1 and rows y0..y1 - 1 counted from the top,
+        clipped to the frame): only there are the nodes drawn and read back; everywhere else the codes are 0.
+        Inside it the codes are those of the whole pass (the same rasteriser, pixel grid and depth test).
+        ``role``: the framebuffer drawn into (passes of very different sizes, such as the frame's and the
+        sub-windows', keep theirs apart so that neither clears and stores more pixels than it needs)."""
+        return self.read_ids(self.draw_ids(scene, width, height, seg_node_map, region, role))
+
+    def draw_ids(self, scene: pyrender.Scene, width: int, height: int, seg_node_map: dict,
+                 region: tuple[int, int, int, int] | None = None, role: str = "ids") -> tuple:
+        """The first half of :meth:`ids` (see :meth:`draw_colour`); returns the ticket :meth:`read_ids` takes."""
+        fb = self._fb(role, width, height)
+        x0, y0, x1, y1 = (0, 0, width, height) if region is None else (
+            max(0, int(region[0])), max(0, int(region[1])), min(width, int(region[2])), min(height, int(region[3])))
+        if x1 <= x0 or y1 <= y0:
+            return width, height, None, role
+        whole = (x0, y0, x1, y1) == (0, 0, width, height)
+        rect = (x0, height - y1, x1 - x0, y1 - y0)         # GL window rectangle: rows count from the bottom
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb.fb)
-        self._draw(scene, width, height, RenderFlags.SEG, seg_node_map)
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, fb.fb)
+        self._draw(scene, width, height, RenderFlags.SEG, seg_node_map, None if whole else rect,
+                   small_in_large=4 * width * height <= fb.width * fb.height)
+        return width, height, rect, role
+
+    def read_ids(self, ticket: tuple) -> np.ndarray:
+        """The second half of :meth:`ids`: read the pass :meth:`draw_ids` issued (no other id pass in between)."""
+        width, height, rect, role = ticket
+        if rect is None:
+            return np.zeros((height, width), dtype=np.uint32)
+        x, y, w, h = rect
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._fb(role, width, height).fb)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        buf = GL.glReadPixels(0, 0, width, height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
-        return np.frombuffer(buf, dtype="<u4").reshape(height, width) & 0xFFFFFF
+        buf = GL.glReadPixels(x, y, w, h, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
+        codes = np.frombuffer(buf, dtype="<u4").reshape(h, w) & 0xFFFFFF
+        if (w, h) == (width, height):
+            return codes
+        out = np.zeros((height, width), dtype=np.uint32)
+        out[y:y + h, x:x + w] = codes
+        return out

@@ -4,7 +4,8 @@ differently when ``render.look`` is ``realistic``.
 - the road's surfaces textured (:mod:`~harness.render.textures`), their shading in the vertex colours;
 - the roadside (:mod:`~harness.render.roadside`): occluders (rails, median, trees, bushes, poles,
   signs, gantries), the far set (buildings, hills) and the shadows the occluders cast on the ground;
-- a sky dome (:mod:`~harness.render.sky`) kept centred on the camera;
+- a sky dome (:mod:`~harness.render.sky`) kept centred on the camera, in :data:`DOME_SECTORS` nodes (and the
+  far set in :data:`FAR_CELL_M` cells) so the renderer can skip those outside the view;
 - detailed vehicles (:func:`harness.render.meshes.vehicle_faces_detailed`) shaded by
   :func:`harness.render.materials.shade_realistic`, each with its sun shadow
   (:mod:`~harness.render.shadows`) as a separate, alpha-blended node;
@@ -38,6 +39,8 @@ CELL_M = 100.0
 """The roadside is cut into square cells this wide (m) in the ground plane, one node each, so that a frame
 draws only the cells in front of the camera and within :data:`DRAW_DISTANCE_M` (llvmpipe pays per triangle)."""
 DOME_AZIMUTHS, DOME_RINGS = 72, 16     # the sky dome's tessellation: smooth gradient, clouds of a few degrees
+DOME_SECTORS = 12          # the dome is drawn as this many azimuth sectors (nodes), those outside the view skipped
+FAR_CELL_M = 1000.0        # the far set (buildings, hills) in cells this wide (m), those outside the view skipped
 DRAW_DISTANCE_M = 900.0
 LOD_FAR_M, LOD_NEAR_M = 65.0, 55.0
 """A detailed vehicle farther than ``LOD_FAR_M`` from the camera is drawn with the simple look's mesh (about a
@@ -94,11 +97,18 @@ def simple_materials(albedo: np.ndarray) -> np.ndarray:
     return tags
 
 
-def _cells(triangles: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(face mask, cell centre XY) of every :data:`CELL_M` ground cell holding a face of ``triangles`` (its centroid)."""
-    cell = np.floor(triangles[:, :, :2].mean(axis=1) / CELL_M).astype(np.int64)
+def _cells(triangles: np.ndarray, size: float = CELL_M) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(face mask, cell centre XY) of every ``size`` (m) ground cell holding a face of ``triangles`` (its centroid)."""
+    cell = np.floor(triangles[:, :, :2].mean(axis=1) / size).astype(np.int64)
     keys, inverse = np.unique(cell, axis=0, return_inverse=True)
-    return [(inverse.ravel() == k, (keys[k] + 0.5) * CELL_M) for k in range(len(keys))]
+    return [(inverse.ravel() == k, (keys[k] + 0.5) * size) for k in range(len(keys))]
+
+
+def _sectors(triangles: np.ndarray, n: int) -> list[np.ndarray]:
+    """Face masks of the ``n`` azimuth sectors (about the origin, from +X) holding the faces' centroids."""
+    c = triangles.mean(axis=1)
+    k = np.floor(np.mod(np.arctan2(c[:, 1], c[:, 0]), 2 * np.pi) / (2 * np.pi / n)).astype(int) % n
+    return [k == i for i in range(n) if (k == i).any()]
 
 
 def look_of(scenario: Scenario) -> LookParams:
@@ -142,6 +152,7 @@ class RealisticScene:
         geo = roadside.roadside_geometry(road, profile, plan, look.roadside, self.sun_w)
         self.occluder_nodes: list[pyrender.Node] = []
         self._cells: list[tuple[pyrender.Node, np.ndarray]] = []     # (node, cell centre XY) of culled nodes
+        self._centres: np.ndarray | None = None                       # (C, 2) those centres, stacked
         occ = geo.occluders
         if len(occ):
             colours = self._shade_matte(occ.albedo, occ.normals)
@@ -149,13 +160,17 @@ class RealisticScene:
                 node = add_mesh(scene, flat_mesh(occ.triangles[keep], colours[keep], self._material))
                 self.occluder_nodes.append(node)
                 self._cells.append((node, centre))
+        self.far_nodes: list[pyrender.Node] = []     # the far set in FAR_CELL_M cells, always drawn (if in view)
         if len(geo.far):
-            add_mesh(scene, flat_mesh(geo.far.triangles, self._shade_matte(geo.far.albedo, geo.far.normals),
-                                      self._material))
+            colours = self._shade_matte(geo.far.albedo, geo.far.normals)
+            for keep, _ in _cells(geo.far.triangles, FAR_CELL_M):
+                self.far_nodes.append(add_mesh(scene, flat_mesh(geo.far.triangles[keep], colours[keep],
+                                                                self._material)))
         for keep, centre in _cells(geo.shadows) if len(geo.shadows) else ():
             self._cells.append((add_mesh(scene, self._shadow_mesh(geo.shadows[keep])), centre))
         dome_tri, dome_rgb = sky.sky_dome(look.sky, self.sun_w, n_azimuth=DOME_AZIMUTHS, n_elevation=DOME_RINGS)
-        self.dome_node = add_mesh(scene, flat_mesh(dome_tri, dome_rgb, self._material))
+        self.dome_nodes = [add_mesh(scene, flat_mesh(dome_tri[keep], dome_rgb[keep], self._material))
+                           for keep in _sectors(dome_tri, DOME_SECTORS)]
 
     def _shade_matte(self, albedo: np.ndarray, normals: np.ndarray) -> np.ndarray:
         return materials.shade_matte(albedo, normals, self.sun_w, self.look.sun, self.look.sky,
@@ -203,17 +218,25 @@ class RealisticScene:
 
     # -------------------------------------------------------------------- frames
     def follow_camera(self, scene: pyrender.Scene, camera_pose: np.ndarray) -> None:
-        """Centre the sky dome on the camera; draw only the roadside cells in front of it and in range."""
+        """Centre the sky dome on the camera; draw only the roadside cells in front of it and in range (and
+        every far-set cell and dome sector: the renderer hides those of them outside the view)."""
         pose = np.eye(4)
         pose[:3, 3] = camera_pose[:3, 3]
-        scene.set_pose(self.dome_node, pose)
+        for node in self.dome_nodes:
+            scene.set_pose(node, pose)
+        for node in self.far_nodes + self.dome_nodes:
+            node.mesh.is_visible = True
         eye, forward = camera_pose[:2, 3], -camera_pose[:2, 2]          # OpenGL camera: it looks along -Z
         forward = forward / max(float(np.linalg.norm(forward)), 1e-9)
         half_diagonal = CELL_M / math.sqrt(2.0)
-        for node, centre in self._cells:
-            d = centre - eye
-            node.mesh.is_visible = bool(np.hypot(*d) <= DRAW_DISTANCE_M + half_diagonal
-                                        and d @ forward >= -half_diagonal)
+        if not self._cells:
+            return
+        if self._centres is None:
+            self._centres = np.array([centre for _, centre in self._cells], dtype=float)
+        d = self._centres - eye
+        show = (np.hypot(d[:, 0], d[:, 1]) <= DRAW_DISTANCE_M + half_diagonal) & (d @ forward >= -half_diagonal)
+        for (node, _), s in zip(self._cells, show.tolist()):
+            node.mesh.is_visible = s
 
     def sensor(self, image: np.ndarray, frame: int) -> np.ndarray:
         """The look's camera applied to the finished colour image (BGR uint8)."""

@@ -17,6 +17,10 @@ A scenario's ``conditions:`` block (time of day, fog, rain, lens; :mod:`harness.
 changes the scene lighting and, through the colour pass's depth buffer (read only then), adds
 image-space effects; without it (or with a neutral one) nothing of that runs.
 
+Realistic look: roadside cells, far-set cells, dome sectors and vehicle shadows wholly outside the
+view are not drawn, and the id pass is drawn only in the rectangle around the drawn vehicles' boxes
+(both leave every pixel and the truth as they were; ``tests/test_render_culling.py``).
+
 A camera with lens distortion draws both passes on a wider pinhole canvas and warps them onto the
 distorted image (:mod:`harness.render.distortion`); a pinhole camera runs none of that.
 
@@ -134,6 +138,18 @@ def gl_identity() -> str:
         _release(pr)
 
 
+def _mesh_bounds(mesh: pyrender.Mesh) -> np.ndarray:
+    """(2, 3) axis-aligned bounds [min, max] of an un-instanced mesh's vertices (model frame), cached on the mesh
+    (pyrender's own ``Mesh.bounds`` uses ``np.infty``, gone in NumPy 2)."""
+    bounds = mesh.__dict__.get("_render_bounds")
+    if bounds is None:
+        if any(p.poses is not None for p in mesh.primitives):
+            raise ValueError("instanced primitives have no single model-frame box")
+        pts = np.concatenate([p.positions for p in mesh.primitives])
+        bounds = mesh._render_bounds = np.stack([pts.min(axis=0), pts.max(axis=0)]).astype(float)
+    return bounds
+
+
 @dataclass
 class _Vehicle:
     node: pyrender.Node
@@ -190,6 +206,7 @@ class Renderer:
                                               znear=ZNEAR_M, zfar=ZFAR_M)
         self._cam_node = self._scene.add(self._cam, pose=np.eye(4))
         self._vehicles: dict[int, _Vehicle] = {}
+        self._static_corners: dict[pyrender.Node, np.ndarray] = {}    # realistic look: static nodes' world boxes
         global _live_renderers
         self._pr: pyrender.OffscreenRenderer | None = pyrender.OffscreenRenderer(c.width, c.height)
         _live_renderers += 1
@@ -300,6 +317,51 @@ class Renderer:
                 entry.triangles, entry.normals, entry.albedo = entry.parts.triangles, entry.parts.normals, entry.parts.albedo
                 entry.node.mesh = self._vehicle_mesh(entry)
 
+    def _cull_outside_view(self, cam_pose: np.ndarray, camera: CameraModel) -> None:
+        """Realistic look: hide the roadside cells, far-set cells, sky-dome sectors and vehicle shadows whose
+        bounding boxes lie wholly outside the view of ``camera`` at ``cam_pose`` (they would draw no pixel: the
+        same image, less work per frame).
+
+        Only nodes never drawn in a sub-window id pass are culled (those passes see beyond the image)."""
+        real = self._real
+        fixed = [n for n, _ in real._cells if n.mesh.is_visible] + real.far_nodes     # static: boxes cached
+        moving = real.dome_nodes + [e.shadow_node for e in self._vehicles.values() if e.shadow_node is not None]
+        corners = [self._static_box(n) for n in fixed]
+        if moving:
+            model = visibility.box_corners(np.stack([_mesh_bounds(n.mesh) for n in moving]))     # (M, 8, 3)
+            mats = np.stack([passes.node_pose(self._scene, n) for n in moving])                  # (M, 4, 4)
+            corners.append(np.einsum("sij,skj->ski", mats[:, :3, :3], model) + mats[:, None, :3, 3])
+        if not corners:
+            return
+        world = np.concatenate([np.reshape(c, (-1, 8, 3)) for c in corners])
+        to_cam = np.linalg.inv(cam_pose)
+        cam = (world @ to_cam[:3, :3].T + to_cam[:3, 3]) * np.array([1.0, -1.0, -1.0])    # OpenGL -> OpenCV axes
+        out = visibility.outside_view(cam, camera, ZNEAR_M)
+        for node, o in zip(fixed + moving, out.tolist()):
+            node.mesh.is_visible = not o       # fixed: visible so far; moving: shown again when back in view
+
+    def _static_box(self, node: pyrender.Node) -> np.ndarray:
+        """(8, 3) world corners of a static node's bounding box (cached)."""
+        corners = self._static_corners.get(node)
+        if corners is None:
+            pose = passes.node_pose(self._scene, node)
+            corners = visibility.box_corners(_mesh_bounds(node.mesh))[0] @ pose[:3, :3].T + pose[:3, 3]
+            self._static_corners[node] = corners
+        return corners
+
+    @staticmethod
+    def _id_region(boxes: np.ndarray, drawn: np.ndarray, camera: CameraModel) -> tuple[int, int, int, int]:
+        """Realistic look: the image rectangle (x0, y0, x1, y1) that holds every drawn vehicle's projected box.
+
+        Outside the drawn vehicles' boxes no pixel can hold a vehicle, so there a roadside occluder's code and
+        the background both end as -1 in the id mask, and :func:`visibility.boxes_touching` looks inside the
+        boxes only: an id pass drawn in this rectangle alone gives the same truth."""
+        b = np.nan_to_num(boxes[drawn], nan=0.0, posinf=1e9, neginf=-1e9)
+        x0, y0 = np.floor(b[:, :2].min(axis=0)) - 1
+        x1, y1 = np.ceil(b[:, 2:].max(axis=0)) + 2
+        w, h = camera.width, camera.height
+        return int(np.clip(x0, 0, w)), int(np.clip(y0, 0, h)), int(np.clip(x1, 0, w)), int(np.clip(y1, 0, h))
+
     def _set_intrinsics(self, fx: float, fy: float, cx: float, cy: float) -> None:
         self._cam.fx, self._cam.fy = fx, fy
         self._cam.cx, self._cam.cy = cx + PIXEL_CENTRE_SHIFT, cy + PIXEL_CENTRE_SHIFT
@@ -334,6 +396,7 @@ class Renderer:
         if self._real is not None:
             self._real.follow_camera(self._scene, cam_pose)
             self._level_of_detail(vehicles, cam_pose[:3, 3])
+            self._cull_outside_view(cam_pose, c)
         heights = np.array([vehicle_height(v.length, v.width, v.body) for v in vehicles])
         corners_cam = c.ego_to_cam(geometry.vehicle_corners_ego(vehicles, world.ego, c, heights, self._profile,
                                                                   self._plan))
@@ -347,19 +410,28 @@ class Renderer:
 
     # ------------------------------------------------------------------ render
     def render(self, world: WorldState) -> RenderedFrame:
-        """Colour image, id mask and unoccluded pixel counts of one world state."""
+        """Colour image, id mask and unoccluded pixel counts of one world state.
+
+        The id pass is issued right after the colour pass, and (without ``conditions``, whose effects need the
+        truth) the image is finished while llvmpipe still rasterises the id pass: the same passes and pixels,
+        less waiting."""
         vehicles, nodes, boxes, corners_cam, drawn = self._prepare(world)
         c = self._drawn(self.frame_camera)
         self._set_intrinsics(c.fx, c.fy, c.cx, c.cy)
+        seg_map = {n: _seg_colour(v.id + 1) for n, v, d in zip(nodes, vehicles, drawn) if d}
+        region = image = hidden_by_roadside = None
+        if seg_map and self._real is not None:
+            region = self._id_region(boxes, drawn, c)
+            seg_map.update({n: _seg_colour(OCCLUDER_CODE) for n in self._real.occluder_nodes})
         with self._gl():
             self._passes.update(self._scene)
-            bgr, depth = self._passes.colour(self._scene, c.width, c.height, want_depth=self._lighting is not None)
-            seg_map = {n: _seg_colour(v.id + 1) for n, v, d in zip(nodes, vehicles, drawn) if d}
-            hidden_by_roadside = None
-            if seg_map and self._real is not None:
-                seg_map.update({n: _seg_colour(OCCLUDER_CODE) for n in self._real.occluder_nodes})
-            if seg_map:
-                codes = self._passes.ids(self._scene, c.width, c.height, seg_map)[::-1]
+            self._passes.draw_colour(self._scene, c.width, c.height)
+            ticket = self._passes.draw_ids(self._scene, c.width, c.height, seg_map, region) if seg_map else None
+            bgr, depth = self._passes.read_colour(c.width, c.height, want_depth=self._lighting is not None)
+            if self._lighting is None:
+                image = self._finish_image(self._lens.linear(bgr) if self._lens is not None else bgr, world)
+            if ticket is not None:
+                codes = self._passes.read_ids(ticket)[::-1]
                 if self._real is not None:
                     roadside_px = codes == OCCLUDER_CODE
                     hidden_by_roadside = visibility.boxes_touching(roadside_px, boxes)
@@ -370,38 +442,47 @@ class Renderer:
             full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn, also=hidden_by_roadside)
         if self._lens is not None:   # the pinhole canvas onto the distorted image
             canvas_ids, id_mask = id_mask, self._lens.nearest(id_mask)
-            bgr, depth = self._lens.linear(bgr), None if depth is None else self._lens.nearest(depth)
             full = self._lens.full_pixels(full, canvas_ids, id_mask)
-        if self._lighting is None:
-            image = apply_sensor(bgr, self._noise_std, self._blur_px,
-                                 self._seed, world.frame)
-        else:
+        if image is None:
+            if self._lens is not None:
+                bgr, depth = self._lens.linear(bgr), self._lens.nearest(depth)
             z = effects.linear_depth(depth, ZNEAR_M, ZFAR_M)
             image = effects.apply(bgr, z, id_mask, world, self.scenario,
                                   self._lighting, self._ray_factor)
+            if self._real is not None:
+                image = self._real.sensor(image, world.frame)
+        return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else self.frame_camera)
+
+    def _finish_image(self, bgr: np.ndarray, world: WorldState) -> np.ndarray:
+        """The frame's image from its (lens-warped) colour pass without ``conditions``: the simple sensor, then
+        the realistic look's camera."""
+        image = apply_sensor(bgr, self._noise_std, self._blur_px, self._seed, world.frame)
         if self._real is not None:
             image = self._real.sensor(image, world.frame)
-        return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else self.frame_camera)
+        return image
 
     def _full_pixels(self, id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=False,
                      also: np.ndarray | None = None) -> dict[int, float]:
         """Unoccluded, unbounded pixel count of every vehicle visible in ``id_mask``; ``also``: (N,) bool,
         vehicles to render unoccluded besides those the shortcut picks (e.g. hidden by the roadside)."""
         c = self._drawn(self.frame_camera)
-        counts = np.bincount((id_mask + 1).ravel())
-        visible = np.flatnonzero(counts[1:]).tolist()
+        ids, counts = np.unique(id_mask, return_counts=True)      # ascending ids (np.bincount: 3x slower)
+        visible = ids[ids >= 0].tolist()
         index = {v.id: i for i, v in enumerate(vehicles)}
         need = visibility.needs_full_render(boxes, corners_cam, drawn, c.width, c.height)
         if also is not None:
             need = need | also
-        full = {vid: float(counts[vid + 1]) for vid in visible}
+        full = {int(vid): float(n) for vid, n in zip(ids, counts) if vid >= 0}
         todo = [index[vid] for vid in visible if force or need[index[vid]]]
         try:
             for win, members in visibility.plan_full_renders(boxes, todo, c.width, c.height, c.width * c.height):
                 self._set_intrinsics(*win.intrinsics(c))
                 codes = self._passes.ids(self._scene, win.width, win.height,
-                                         {nodes[i]: _seg_colour(k + 1) for k, i in enumerate(members)})
-                n_px = np.bincount(codes.ravel(), minlength=len(members) + 1)
+                                         {nodes[i]: _seg_colour(k + 1) for k, i in enumerate(members)},
+                                         role="window")
+                n_px = np.zeros(len(members) + 1, dtype=np.int64)
+                drawn_codes, n = np.unique(codes, return_counts=True)
+                n_px[drawn_codes] = n
                 for k, i in enumerate(members):
                     vid = vehicles[i].id
                     full[vid] = max(float(n_px[k + 1]) * win.scale ** 2, full[vid])

@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from monorarp.core.camera import CameraModel
@@ -78,8 +79,8 @@ def boxes_touching(mask: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     h, w = mask.shape
     if not len(boxes) or not mask.any():
         return np.zeros(len(boxes), dtype=bool)
-    ii = np.zeros((h + 1, w + 1), dtype=np.int64)
-    ii[1:, 1:] = mask.cumsum(0).cumsum(1)
+    ii = cv2.integral(np.ascontiguousarray(mask, dtype=bool).view(np.uint8), sdepth=cv2.CV_32S if h * w < 2 ** 31
+                      else cv2.CV_64F)
     b = np.nan_to_num(np.asarray(boxes, dtype=float), nan=0.0, posinf=1e9, neginf=-1e9)
     x0 = np.clip(np.floor(b[:, 0] + 0.5), 0, w).astype(int)
     y0 = np.clip(np.floor(b[:, 1] + 0.5), 0, h).astype(int)
@@ -88,6 +89,32 @@ def boxes_touching(mask: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     ok = (x1 > x0) & (y1 > y0)
     total = ii[y1, x1] - ii[y0, x1] - ii[y1, x0] + ii[y0, x0]
     return ok & (total > 0)
+
+
+def box_corners(bounds: np.ndarray) -> np.ndarray:
+    """(N, 8, 3) corners of (N, 2, 3) axis-aligned boxes ``[[min xyz], [max xyz]]``."""
+    b = np.asarray(bounds, dtype=float).reshape(-1, 2, 3)
+    pick = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)])          # (8, 3) of 0/1
+    return np.where(pick[None] == 1, b[:, None, 1], b[:, None, 0])
+
+
+def outside_view(corners_cam: np.ndarray, camera: CameraModel, znear: float, margin: float = 2.0) -> np.ndarray:
+    """(N,) bool: convex hulls of (N, K, 3) points (camera frame, OpenCV axes, m) that lie wholly outside the
+    view of ``camera`` (pinhole; pixel centres at integers): every point behind the near plane ``znear``, or
+    every point beyond one side plane of the image (its border pushed out by ``margin`` px).
+
+    Conservative: True means nothing of the hull projects into the image, so a mesh inside it draws no
+    pixel; False may still draw none. The side planes pass through the camera centre, so the test holds
+    for points behind the camera too."""
+    c = np.asarray(corners_cam, dtype=float)
+    x, y, z = c[..., 0], c[..., 1], c[..., 2]
+    m = float(margin)
+    planes = np.stack([z < znear,
+                       camera.fx * x + (camera.cx + 0.5 + m) * z < 0,
+                       -camera.fx * x + (camera.width - 0.5 + m - camera.cx) * z < 0,
+                       camera.fy * y + (camera.cy + 0.5 + m) * z < 0,
+                       -camera.fy * y + (camera.height - 0.5 + m - camera.cy) * z < 0])     # (5, N, K)
+    return planes.all(axis=2).any(axis=0)
 
 
 def full_window(box: np.ndarray, width: int, height: int, max_pixels: int) -> Window | None:
