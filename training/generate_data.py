@@ -20,6 +20,12 @@ With ``--appearance P`` a fraction P of the scenarios gets a random appearance s
 wider placed-vehicle dimensions (:func:`random_dimensions`), again from their own random stream;
 ``--appearance-family heldout`` draws the styles from the held-out family instead (validation only),
 ``none`` renders the same scenes unstyled.
+With ``--look realistic`` every scenario is rendered with the realistic look (:mod:`harness.render.look`:
+textured road, roadside, sky, sun shadows, detailed vehicles, sensor model) of ``--look-family``, its
+look seed drawn from the scenario's own random stream; ``--conditions``/``--appearance`` do not combine with it.
+With ``--fleet mixed`` the traffic is a real motorway fleet (``traffic.fleet: mixed``, :mod:`harness.world.fleet`:
+hatchbacks, saloons, estates, SUVs, vans, pickups, box trucks, artics, buses) and every placed vehicle's body
+and footprint is drawn from the same fleet (its own random stream).
 
     python -m training.generate_data --out data/train --scenarios 300 --seed 0
     python -m training.generate_data --out data/val --scenarios 40 --seed 100000 --resolutions 640x360
@@ -145,6 +151,22 @@ def random_dimensions(rng: np.random.Generator, vehicles: list[dict]) -> None:
         v["width_m"] = round(float(rng.uniform(2.3, 2.6) if big else rng.uniform(1.5, 2.2)), 2)
 
 
+def dress(sd: dict, seed: int, index: int, look: str, look_family: str, fleet: str) -> None:
+    """Give a :func:`scenario_dict` scenario its look and fleet, in place, each from its own random stream
+    (``[seed, index, 0x100C]``: the realistic look's seed; ``[seed, index, 0xF1EE]``: the placed vehicles'
+    bodies), so the rest of the draw is unchanged. ``look`` ``simple`` and ``fleet`` ``none`` change nothing."""
+    if look == "realistic":
+        lrng = np.random.default_rng([seed, index, 0x100C])
+        sd["render"] |= {"look": "realistic", "look_family": look_family, "look_seed": int(lrng.integers(0, 2**32))}
+    if fleet == "mixed":
+        from harness.world.fleet import draw_body
+
+        frng = np.random.default_rng([seed, index, 0xF1EE])
+        sd["traffic"]["fleet"] = "mixed"
+        for v in sd["vehicles"]:
+            v["body"], v["length_m"], v["width_m"] = draw_body(frng)
+
+
 def visible_boxes(id_mask: np.ndarray, full_pixels: dict[int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ids, boxes (K, 4) tight over visible pixels, continuous px; visibility (K,))."""
     labels = id_mask + 1
@@ -188,7 +210,8 @@ def fine_truth(renderer: Renderer, world, n: int) -> dict[int, np.ndarray]:
 def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, frame_stride: int,
              resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
              fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1,
-             conditions: float = 0.0, styled: float = 0.0, family: str = "train", dense: float = 0.0) -> None:
+             conditions: float = 0.0, styled: float = 0.0, family: str = "train", dense: float = 0.0,
+             look: str = "simple", look_family: str = "train", fleet: str = "none") -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
     the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
@@ -200,7 +223,12 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
     aligned with ``boxes.npy``, source px; NaN where the vehicle has no pixel at the finer scale): the
     1x mask rounds each edge to a pixel boundary, +-0.5 px. A fraction ``styled`` of the scenarios gets an
     appearance style of ``family`` (``train`` or ``heldout``, :mod:`training.appearance`; ``none``: no style)
-    and wider placed-vehicle dimensions. A fraction ``dense`` is made dense occluding traffic (:func:`densify`)."""
+    and wider placed-vehicle dimensions. A fraction ``dense`` is made dense occluding traffic (:func:`densify`).
+    ``look`` ``realistic`` renders every scenario with the realistic look of ``look_family`` (look seed from
+    the scenario's own stream ``[seed, index, 0x100C]``). ``fleet`` ``mixed``: a mixed fleet in the traffic and
+    the placed vehicles' bodies drawn from it (stream ``[seed, index, 0xF1EE]``)."""
+    if look == "realistic" and (conditions > 0 or styled > 0):
+        raise SystemExit("--look realistic does not combine with --conditions or --appearance")
     if keep_source and (len(set(resolutions)) != 1 or fovea):
         raise SystemExit("--keep-source needs a single resolution and no --fovea")
     if truth_supersample > 1 and not keep_source:
@@ -227,6 +255,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
                 random_dimensions(arng, sd["vehicles"])
                 samplers = {"train": appearance.sample_training, "heldout": appearance.sample_heldout}
                 style = samplers[family](arng) if family in samplers else None
+            dress(sd, seed, s, look, look_family, fleet)
             scen = parse_scenario(sd)
             frames = list(simulate(scen, frames_per_scenario * frame_stride))[::frame_stride]
         except ScenarioError:
@@ -281,7 +310,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         "frames_per_scenario": frames_per_scenario, "frame_stride": frame_stride,
         "resolutions": [list(r) for r in resolutions], "min_visibility": min_visibility,
         "min_size_net_px": min_size, "fovea": fovea, "conditions_fraction": conditions,
-        "appearance_fraction": styled, "appearance_family": family, "dense_fraction": dense, "images": metas}, indent=1))
+        "appearance_fraction": styled, "appearance_family": family, "dense_fraction": dense,
+        "look": look, "look_family": look_family, "fleet": fleet, "images": metas}, indent=1))
     req = sum(m["n_required"] for m in metas)
     print(f"wrote {len(images)} images, {req} required boxes, {len(rows) - req} ignored to {out} "
           f"({skipped} scenarios skipped) in {time.time() - t0:.0f}s", flush=True)
@@ -311,6 +341,13 @@ def main(argv: list[str] | None = None) -> None:
                          "scenes and vehicle sizes, unstyled)")
     ap.add_argument("--dense", type=float, default=0.0, metavar="P",
                     help="fraction of scenarios made dense occluding traffic (densify; default 0)")
+    ap.add_argument("--look", choices=("simple", "realistic"), default="simple",
+                    help="render look of every scenario (default simple; realistic: harness.render.look)")
+    ap.add_argument("--look-family", choices=("train", "heldout"), default="train",
+                    help="randomisation family of the realistic look (heldout: validation only)")
+    ap.add_argument("--fleet", choices=("none", "mixed"), default="none",
+                    help="traffic fleet: none (the simulator's 5 x 2 m cars; placed sizes as drawn) or mixed "
+                         "(harness.world.fleet body types for traffic and placed vehicles)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
@@ -321,7 +358,8 @@ def main(argv: list[str] | None = None) -> None:
     if not 0.0 <= a.appearance <= 1.0:
         ap.error("--appearance must be a fraction in [0, 1]")
     generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
-             a.keep_source, a.truth_supersample, a.conditions, a.appearance, a.appearance_family, a.dense)
+             a.keep_source, a.truth_supersample, a.conditions, a.appearance, a.appearance_family, a.dense,
+             a.look, a.look_family, a.fleet)
 
 
 if __name__ == "__main__":

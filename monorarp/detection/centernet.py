@@ -28,6 +28,7 @@ REFINE_DEFAULT = True     # sub-pixel bottom-edge refinement (A/B figures: notes
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_vehicle.onnx"
 ROBUST_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_robust.onnx")
 DENSE_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_dense.onnx")
+REALISTIC_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_realistic.onnx")
 OUTPUT_NAMES = ("heatmap", "ltrb")
 
 
@@ -265,3 +266,13 @@ class DenseCenterNetDetector(CenterNetDetector):
     def __init__(self, model_path: str | Path | None = None, camera: CameraModel | dict | None = None,
                  **kw) -> None:
         super().__init__(DENSE_MODEL if model_path is None else model_path, camera=camera, **kw)
+
+
+class RealisticCenterNetDetector(CenterNetDetector):
+    """:class:`CenterNetDetector` with the model trained from scratch on realistic-look renders only,
+    ``centernet_vehicle_realistic.onnx`` (registered as ``centernet_realistic``; training and figures:
+    docs/looks.md)."""
+
+    def __init__(self, model_path: str | Path | None = None, camera: CameraModel | dict | None = None,
+                 **kw) -> None:
+        super().__init__(REALISTIC_MODEL if model_path is None else model_path, camera=camera, **kw)

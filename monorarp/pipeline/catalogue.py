@@ -12,6 +12,7 @@ BUILTINS: dict[str, dict[str, str]] = {
         "centernet": "monorarp.detection.centernet:CenterNetDetector",
         "centernet_robust": "monorarp.detection.centernet:RobustCenterNetDetector",
         "centernet_dense": "monorarp.detection.centernet:DenseCenterNetDetector",
+        "centernet_realistic": "monorarp.detection.centernet:RealisticCenterNetDetector",
         "yolo": "monorarp.detection.yolo:YoloDetector",
         "yolox": "monorarp.detection.yolox:YoloxDetector",
     },

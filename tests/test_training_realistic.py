@@ -1,0 +1,69 @@
+"""The detector trained on realistic renders only: its training scenes (``generate_data --look realistic
+--fleet mixed``) and the shipped file."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from harness.world.fleet import SHARES
+from harness.world.scenario import parse_scenario
+from training.generate_data import dress, scenario_dict
+
+
+def _drawn(seed: int, index: int, **kw) -> tuple[dict, dict]:
+    sd = scenario_dict(np.random.default_rng([seed, index]), index, seed, (1242, 375))
+    dressed = copy.deepcopy(sd)
+    dress(dressed, seed, index, **kw)
+    return sd, dressed
+
+
+def test_dress_sets_look_and_fleet_from_their_own_streams_and_nothing_else():
+    seeds = set()
+    for index in range(20):
+        sd, d = _drawn(10, index, look="realistic", look_family="train", fleet="mixed")
+        scen = parse_scenario(d)
+        assert scen.render.look == "realistic" and scen.render.look_family == "train"
+        assert scen.traffic.fleet == "mixed"
+        assert all(v.body in SHARES for v in scen.vehicles)
+        seeds.add(scen.render.look_seed)
+        strip = {k: v for k, v in d["render"].items() if not k.startswith("look")}
+        assert strip == sd["render"] and d["camera"] == sd["camera"] and d["ego"] == sd["ego"]
+        for a, b in zip(sd["vehicles"], d["vehicles"]):    # placement kept, body and footprint redrawn
+            assert {k: a[k] for k in ("lane", "distance_m", "speed_mps")} == {k: b[k] for k in ("lane", "distance_m", "speed_mps")}
+    assert len(seeds) == 20                                  # every scenario its own draw of the look
+    assert _drawn(10, 3, look="realistic", look_family="train", fleet="mixed") == \
+        _drawn(10, 3, look="realistic", look_family="train", fleet="mixed")
+
+
+def test_dress_simple_and_no_fleet_is_the_plain_draw():
+    sd, d = _drawn(10, 5, look="simple", look_family="train", fleet="none")
+    assert d == sd
+
+
+# ------------------------------------------------------------------ the shipped model
+
+
+def test_realistic_model_is_small_registered_and_finds_a_car_in_a_realistic_render():
+    from monorarp.core.boxes import iou
+    from monorarp.detection.centernet import REALISTIC_MODEL, RealisticCenterNetDetector
+    from monorarp.pipeline.detectors import load_detector
+    from rendered_frame import first_frame
+
+    assert REALISTIC_MODEL.stat().st_size <= 10_000_000
+    meta = REALISTIC_MODEL.with_suffix(".json").read_text()
+    assert '"init": "from scratch"' in meta and "no real image" in meta
+    scen, image, truth = first_frame({
+        "name": "realistic_check", "seed": 5, "duration_s": 1.0, "fps": 15.0, "road": {"lanes": 3},
+        "ego": {"lane": 1, "speed_mps": 25.0}, "traffic": {"vehicles_count": 1, "density": 0.2},
+        "vehicles": [{"name": "lead", "lane": 0, "distance_m": 18.0, "speed_mps": 25.0, "behaviour": "constant_speed",
+                      "body": "suv"}],
+        "camera": {"width": 640, "height": 360, "hfov_deg": 70, "height_m": 1.4, "pitch_deg": 1.0},
+        "render": {"look": "realistic", "look_family": "heldout", "look_seed": 11}})
+    det = load_detector("centernet_realistic", camera=scen.camera.model())
+    assert isinstance(det, RealisticCenterNetDetector) and det.path == REALISTIC_MODEL
+    lead = min((o for o in truth.objects if abs(o.d_lat) < 1.0), key=lambda o: o.d_long)
+    assert 16.0 < lead.d_long < 20.0
+    boxes = np.array([d.box for d in det.detect(image)], float).reshape(-1, 4)
+    assert len(boxes) and iou(boxes, np.array(lead.box, float)[None]).max() >= 0.7
