@@ -35,6 +35,19 @@ def ap_inputs(truths: list[KittiFrameTruth], results: list[FrameResult]) -> tupl
     return tr, de
 
 
+def bootstrap(tr: list, de: list, resamples: int = 400, seed: int = 0) -> dict:
+    """Moderate Car AP_R40 at IoU 0.5 and 0.7 over image resamples (:func:`kitti_ap.bootstrap_ap_r40`): the
+    95 % percentile interval and the resamples themselves (to compare two sets' APs, resample both)."""
+    out: dict = {"unit": "image", "resamples": resamples, "seed": seed}
+    for thr in (0.5, 0.7):
+        b = kitti_ap.bootstrap_ap_r40(tr, de, "Car", "moderate", thr, resamples, seed)
+        ok = b[np.isfinite(b)]
+        out[f"moderate_iou_{thr:g}"] = {
+            "interval_95": [round(float(v), 4) for v in np.percentile(ok, [2.5, 97.5])] if len(ok) else None,
+            "samples": [None if not np.isfinite(v) else round(float(v), 4) for v in b]}
+    return out
+
+
 def score(ds: Dataset, truths: list[KittiFrameTruth], results: list[FrameResult], facts: dict,
           wall_s: float) -> tuple[dict, list[dict]]:
     """``(metrics, per-object rows)`` of a run (:func:`harness.kitti_eval.run.run_dataset`'s truths, results and
@@ -46,6 +59,7 @@ def score(ds: Dataset, truths: list[KittiFrameTruth], results: list[FrameResult]
                                 tracking=ds.kind == "tracking")
     tr, de = ap_inputs(truths, results)
     metrics["kitti_ap"] = kitti_ap.kitti_ap(tr, de, "Car")
+    metrics["kitti_ap"]["bootstrap"] = bootstrap(tr, de)
     metrics["dataset"] = {
         "root": str(ds.root), "kind": ds.kind, "frames": len(truths),
         "sequences": len({t.sample.split("/")[0] for t in truths}) if ds.kind == "tracking" else None,

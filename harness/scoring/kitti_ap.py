@@ -195,6 +195,26 @@ def average_precision(truths: Sequence[ImageTruth], detections: Sequence[ImageDe
             "ignored": int((all_o == -1).sum())}
 
 
+def bootstrap_ap_r40(truths: Sequence[ImageTruth], detections: Sequence[ImageDetections], cls: str = "Car",
+                     difficulty: str = "moderate", iou_threshold: float = 0.5, resamples: int = 400,
+                     seed: int = 0) -> np.ndarray:
+    """AP_R40 of ``resamples`` bootstrap resamples of the images (drawn with replacement, seeded; each image
+    keeps its own matching): the sampling spread of :func:`average_precision`'s ``ap_r40`` over a set of
+    images. NaN for a resample without a valid box."""
+    per = [match_image(tr, de, cls, difficulty, iou_threshold) for tr, de in zip(truths, detections)]
+    scores = [np.asarray(de.scores, dtype=float).reshape(-1) for de in detections]
+    valid = np.array([n for _, n, _ in per], dtype=int)
+    rng = np.random.default_rng(seed)
+    out = np.full(resamples, np.nan)
+    for b in range(resamples):
+        idx = rng.integers(0, len(per), len(per)) if per else np.zeros(0, int)
+        n = int(valid[idx].sum())
+        if n:
+            _, precision, recall = pr_curve([per[i][0] for i in idx], [scores[i] for i in idx], n)
+            out[b] = interpolated_ap(precision, recall, R40)
+    return out
+
+
 def kitti_ap(truths: Sequence[ImageTruth], detections: Sequence[ImageDetections], cls: str = "Car",
              iou_thresholds: Sequence[float] = (0.7, 0.5)) -> dict:
     """``{"class", "iou_0.7": {"easy": {...}, "moderate": ..., "hard": ...}, "iou_0.5": ...}``."""
