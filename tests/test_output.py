@@ -201,9 +201,14 @@ def test_interrupts_deferred_holds_ctrl_c_until_the_block_ends():
     from monorarp.app.io import interrupts_deferred
 
     done = []
-    with pytest.raises(KeyboardInterrupt):
-        with interrupts_deferred():
-            os.kill(os.getpid(), signal.SIGINT)
-            done.append("first")
-            done.append("second")       # not cut between the two
+    # Python's own Ctrl-C handler, whatever this process inherited (a background job starts with SIGINT ignored)
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with interrupts_deferred():
+                os.kill(os.getpid(), signal.SIGINT)
+                done.append("first")
+                done.append("second")       # not cut between the two
+    finally:
+        signal.signal(signal.SIGINT, inherited)
     assert done == ["first", "second"]
