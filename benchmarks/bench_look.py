@@ -1,7 +1,7 @@
 """Realism of the renders, measured: detectors scored on renders as on real KITTI frames, per look.
 
 Usage: python benchmarks/bench_look.py [--real DIR] [--looks simple realistic:train realistic:heldout]
-                                       [--seeds N] [--frames N] [--detectors yolox centernet]
+                                       [--seeds N] [--frames N] [--detectors yolox centernet] [--fleet mixed]
 
 For each look it renders ``scenarios/looks/kitti_camera.yaml`` (KITTI's camera over three-lane traffic) at
 ``--seeds`` seeds (each seed its own traffic and, for the realistic look, its own draw of the look from the
@@ -42,7 +42,7 @@ def parse_look(text: str) -> tuple[str, str]:
     return look, family or "train"
 
 
-def render_dataset(look: str, family: str, seeds: int, frames: int, out: Path) -> float:
+def render_dataset(look: str, family: str, seeds: int, frames: int, out: Path, fleet: str = "none") -> float:
     """Export ``seeds`` x ``frames`` renders of the scene in one KITTI object dataset at ``out``; frames/s."""
     from harness.export.exporter import export
     from harness.export.source import open_source
@@ -52,7 +52,8 @@ def render_dataset(look: str, family: str, seeds: int, frames: int, out: Path) -
     for seed in range(seeds):
         def adjust(sc, seed=seed):
             render = sc.render.model_copy(update={"look": look, "look_family": family, "look_seed": seed})
-            return sc.model_copy(update={"seed": seed, "render": render})
+            traffic = sc.traffic.model_copy(update={"fleet": fleet})
+            return sc.model_copy(update={"seed": seed, "render": render, "traffic": traffic})
 
         part = out.parent / f"{out.name}-part{seed}"
         t0 = time.perf_counter()
@@ -107,6 +108,8 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=6)
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--detectors", nargs="+", default=["yolox", "centernet"])
+    ap.add_argument("--fleet", choices=("none", "mixed"), default="none",
+                    help="the scene's traffic fleet (traffic.fleet; mixed: harness.world.fleet body types)")
     ap.add_argument("--keep", type=Path, default=None, metavar="DIR", help="keep the rendered datasets here")
     args = ap.parse_args()
     looks = [parse_look(t) for t in args.looks]
@@ -123,7 +126,7 @@ def main() -> None:
             data = base / name.replace(":", "-")
             if data.exists():
                 shutil.rmtree(data)
-            speeds[name] = render_dataset(look, family, args.seeds, args.frames, data)
+            speeds[name] = render_dataset(look, family, args.seeds, args.frames, data, args.fleet)
             for det in args.detectors:
                 rows.append((f"renders, {name}", det, score(data, det, Path(tmp) / f"{name}-{det}", None)))
     print(table(rows))

@@ -338,3 +338,33 @@ def test_a_previous_export_is_replaced_by_another_format(exported, tmp_path):
     assert main(["export", str(exported["run"]), "--format", "kitti", "--out", str(out), "--frames", "2"]) == 0
     assert main(["export", str(exported["run"]), "--format", "kitti-tracking", "--out", str(out), "--frames", "2"]) == 0
     assert not (out / "label_2").exists() and (out / "label_02" / "0000.txt").is_file()
+
+
+def test_a_truck_alongside_with_its_centre_behind_the_camera_is_a_dontcare_region(tmp_path):
+    """A 16.3 m artic in the next lane, its rear 10 m behind the camera: its ground-face centre is behind the
+    camera (no KITTI 3-D label can hold it), so it is exported as a DontCare region of its 2-D box, and the
+    export stays readable by the KITTI reader, which refuses a location at z <= 0."""
+    from harness.export.exporter import export
+    from harness.export.source import open_source
+    from harness.kitti_eval.reader import open_dataset
+    from harness.world.scenario import parse_scenario
+
+    scen = parse_scenario({
+        "name": "alongside", "seed": 2, "duration_s": 1.0, "fps": 10.0, "road": {"lanes": 3},
+        "ego": {"lane": 1, "speed_mps": 25.0}, "traffic": {"vehicles_count": 0},
+        "vehicles": [{"name": "artic", "lane": 1, "distance_m": -10.0, "speed_mps": 25.0,
+                      "behaviour": "constant_speed", "body": "artic", "length_m": 16.3, "width_m": 2.55},
+                     {"name": "lead", "lane": 0, "distance_m": 20.0, "speed_mps": 25.0, "behaviour": "constant_speed"}],
+        "camera": {"width": 640, "height": 360, "hfov_deg": 90, "height_m": 1.4, "pitch_deg": 0.0}})
+    path = tmp_path / "s.yaml"
+    path.write_text(json.dumps(scen.model_dump(mode="json")))
+    out = tmp_path / "k"
+    export(open_source(path, 1), "kitti", out, progress=False)
+    lines = [ln.split() for ln in (out / "label_2" / "000000.txt").read_text().splitlines()]
+    assert sorted(ln[0] for ln in lines) == ["Car", "DontCare"]
+    dc = next(ln for ln in lines if ln[0] == "DontCare")
+    assert [float(v) for v in dc[8:15]] == [-1, -1, -1, -1000, -1000, -1000, -10]
+    x1, y1, x2, y2 = map(float, dc[4:8])
+    assert x1 > 320 and x2 - x1 > 50                       # the truck's front, at the image's right side
+    ds = open_dataset(out)                                   # readable: no z <= 0 location
+    assert ds.n_frames == 1 and not ds.skipped

@@ -25,9 +25,17 @@ OBJECT_DIRS = ("image_2", "label_2", "calib")
 TRACKING_DIRS = ("image_02", "label_02", "calib")
 
 
+#: KITTI's fields of a ``DontCare`` region (its devkit's convention): only the 2-D box is meaningful.
+DONTCARE = {"type": "DontCare", "truncated": -1.0, "truncated_level": -1, "occluded": -1, "alpha": -10.0,
+            "dimensions": [-1.0, -1.0, -1.0], "location": [-1000.0, -1000.0, -1000.0], "rotation_y": -10.0}
+
+
 # ------------------------------------------------------------------------------ text
 def label_fields(objects: Sequence[ObjectTruth], camera: CameraModel) -> list[dict]:
-    """The KITTI fields of each ground-truth object (dicts in object order; numbers unrounded)."""
+    """The KITTI fields of each ground-truth object (dicts in object order; numbers unrounded). A vehicle
+    whose ground-face centre is not in front of the camera (z <= 0: a long truck alongside, seen only by its
+    front) has no KITTI 3-D label (KITTI's locations are in front of the camera): it is written as a
+    ``DontCare`` region of its 2-D box, so a detection on it is neither a hit nor a false alarm."""
     if not objects:
         return []
     corners = np.array([o.corners_cam for o in objects], dtype=float)
@@ -38,6 +46,9 @@ def label_fields(objects: Sequence[ObjectTruth], camera: CameraModel) -> list[di
     trunc_level = geo.levels(trunc, geo.TRUNCATION_LEVELS)
     out = []
     for k, o in enumerate(objects):
+        if not box["location"][k][2] > 0:
+            out.append({"id": o.id, **DONTCARE, "box": [float(b) for b in o.box]})
+            continue
         out.append({"id": o.id, "type": geo.kitti_type(o.length, o.width, o.body),
                     "truncated": float(trunc[k]), "truncated_level": int(trunc_level[k]),
                     "occluded": int(occ_level[k]), "alpha": float(box["alpha"][k]),
