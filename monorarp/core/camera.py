@@ -285,21 +285,20 @@ class CameraModel:
 
     def distort_pixels(self, uv: np.ndarray) -> np.ndarray:
         """(..., 2) ideal (pinhole) pixels -> (..., 2) pixels of the distorted image (``cv2.projectPoints``)."""
-        uv = np.asarray(uv, dtype=float)
-        if not self.distorted:
-            return uv.copy()
-        xy = np.stack([(uv[..., 0] - self.cx) / self.fx, (uv[..., 1] - self.cy) / self.fy], axis=-1)
-        d = _lens.distort(xy, self.distortion)
-        return np.stack([d[..., 0] * self.fx + self.cx, d[..., 1] * self.fy + self.cy], axis=-1)
+        return self._through_lens(uv, _lens.distort)
 
     def undistort_pixels(self, uv: np.ndarray) -> np.ndarray:
         """(..., 2) pixels of the distorted image -> (..., 2) ideal pixels (``cv2.undistortPoints`` with ``P = K``)."""
+        return self._through_lens(uv, _lens.undistort)
+
+    def _through_lens(self, uv: np.ndarray, mapping) -> np.ndarray:
+        """``mapping`` (normalised coordinates, coefficients -> normalised coordinates) applied to pixels."""
         uv = np.asarray(uv, dtype=float)
         if not self.distorted:
             return uv.copy()
         xy = np.stack([(uv[..., 0] - self.cx) / self.fx, (uv[..., 1] - self.cy) / self.fy], axis=-1)
-        p = _lens.undistort(xy, self.distortion)
-        return np.stack([p[..., 0] * self.fx + self.cx, p[..., 1] * self.fy + self.cy], axis=-1)
+        m = mapping(xy, self.distortion)
+        return np.stack([m[..., 0] * self.fx + self.cx, m[..., 1] * self.fy + self.cy], axis=-1)
 
     def project_ego(self, points_ego: np.ndarray) -> np.ndarray:
         """(..., 3) ego-frame points -> (..., 2) pixels."""
