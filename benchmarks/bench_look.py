@@ -2,8 +2,10 @@
 
 Usage: python benchmarks/bench_look.py [--real DIR] [--looks simple realistic:train realistic:heldout]
                                        [--seeds N] [--frames N] [--detectors yolox centernet] [--fleet mixed]
+                                       [--scene motorway|street]
 
-For each look it renders ``scenarios/looks/kitti_camera.yaml`` (KITTI's camera over three-lane traffic) at
+For each look it renders ``scenarios/looks/kitti_camera.yaml`` (KITTI's camera over three-lane traffic; with
+``--scene street`` ``scenarios/looks/street.yaml``: the same camera in an urban street with parked cars) at
 ``--seeds`` seeds (each seed its own traffic and, for the realistic look, its own draw of the look from the
 family), ``--frames`` frames each (0.2 s apart), exports them as one KITTI object dataset
 (:mod:`harness.export`) and runs ``monorarp eval kitti`` on it with each detector
@@ -30,7 +32,8 @@ from harness.bench.script import run_script
 from monorarp.core.errors import UserError
 
 ROOT = Path(__file__).resolve().parent.parent
-SCENARIO = ROOT / "scenarios" / "looks" / "kitti_camera.yaml"
+SCENES = {"motorway": ROOT / "scenarios" / "looks" / "kitti_camera.yaml",
+          "street": ROOT / "scenarios" / "looks" / "street.yaml"}
 KITTI_HEIGHT_M = 1.65
 DIFFICULTIES = ("easy", "moderate", "hard")
 
@@ -42,7 +45,8 @@ def parse_look(text: str) -> tuple[str, str]:
     return look, family or "train"
 
 
-def render_dataset(look: str, family: str, seeds: int, frames: int, out: Path, fleet: str = "none") -> float:
+def render_dataset(look: str, family: str, seeds: int, frames: int, out: Path, fleet: str | None = None,
+                   scene: str = "motorway") -> float:
     """Export ``seeds`` x ``frames`` renders of the scene in one KITTI object dataset at ``out``; frames/s."""
     from harness.export.exporter import export
     from harness.export.source import open_source
@@ -52,12 +56,12 @@ def render_dataset(look: str, family: str, seeds: int, frames: int, out: Path, f
     for seed in range(seeds):
         def adjust(sc, seed=seed):
             render = sc.render.model_copy(update={"look": look, "look_family": family, "look_seed": seed})
-            traffic = sc.traffic.model_copy(update={"fleet": fleet})
+            traffic = sc.traffic if fleet is None else sc.traffic.model_copy(update={"fleet": fleet})
             return sc.model_copy(update={"seed": seed, "render": render, "traffic": traffic})
 
         part = out.parent / f"{out.name}-part{seed}"
         t0 = time.perf_counter()
-        export(open_source(SCENARIO, frames, adjust), "kitti", part, progress=False)
+        export(open_source(SCENES[scene], frames, adjust), "kitti", part, progress=False)
         seconds += time.perf_counter() - t0
         for sub in ("image_2", "label_2", "calib"):
             (out / sub).mkdir(exist_ok=True)
@@ -108,8 +112,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=6)
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--detectors", nargs="+", default=["yolox", "centernet"])
-    ap.add_argument("--fleet", choices=("none", "mixed"), default="none",
-                    help="the scene's traffic fleet (traffic.fleet; mixed: harness.world.fleet body types)")
+    ap.add_argument("--fleet", choices=("none", "mixed"), default=None,
+                    help="the traffic fleet (traffic.fleet; mixed: harness.world.fleet body types); default: the "
+                         "scene's (motorway: none, street: mixed)")
+    ap.add_argument("--scene", choices=tuple(SCENES), default="motorway",
+                    help="motorway: scenarios/looks/kitti_camera.yaml; street: scenarios/looks/street.yaml")
     ap.add_argument("--keep", type=Path, default=None, metavar="DIR", help="keep the rendered datasets here")
     args = ap.parse_args()
     looks = [parse_look(t) for t in args.looks]
@@ -126,7 +133,7 @@ def main() -> None:
             data = base / name.replace(":", "-")
             if data.exists():
                 shutil.rmtree(data)
-            speeds[name] = render_dataset(look, family, args.seeds, args.frames, data, args.fleet)
+            speeds[name] = render_dataset(look, family, args.seeds, args.frames, data, args.fleet, args.scene)
             for det in args.detectors:
                 rows.append((f"renders, {name}", det, score(data, det, Path(tmp) / f"{name}-{det}", None)))
     print(table(rows))

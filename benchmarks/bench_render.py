@@ -1,6 +1,8 @@
 """Frames/s of simulation + rendering (colour + id pass + ground truth) with 30 vehicles.
 
-Usage: python benchmarks/bench_render.py [--frames N] [--look simple|realistic|both]
+Usage: python benchmarks/bench_render.py [--frames N] [--look simple|realistic|both] [--street]
+With ``--street`` the road is an urban street (two 3.25 m lanes, parking strips with 10 parked cars per 100 m
+a side, pavements, the realistic look's frontage; ``road.street``) and the 30 vehicles drive at 8-13 m/s.
 Uses harness.simulation when present, else synthetic constant-velocity traffic.
 Prints one line per resolution: wall-clock frames/s and the process CPU time per
 frame (all threads; a fairer figure when other jobs share the cores).
@@ -20,12 +22,14 @@ from harness.world.scenario import Scenario, parse_scenario
 from harness.world.state import VehicleState, WorldState
 
 
-def scenario_for(width: int, height: int, look: str = "simple") -> Scenario:
+def scenario_for(width: int, height: int, look: str = "simple", street: bool = False) -> Scenario:
+    road = {"lanes": 2, "lane_width_m": 3.25, "shoulder_width_m": 2.3, "street": {"parked_per_100m": 10}} \
+        if street else {"lanes": 4}
     return parse_scenario({
         "name": "bench", "seed": 1, "fps": 15,
-        "road": {"lanes": 4},
-        "traffic": {"vehicles_count": 30, "density": 1.5},
-        "ego": {"lane": 1, "speed_mps": 25.0},
+        "road": road,
+        "traffic": {"vehicles_count": 30, "density": 1.5} | ({"speed_range_mps": [8, 13]} if street else {}),
+        "ego": {"lane": 1, "speed_mps": 10.0 if street else 25.0},
         "camera": {"width": width, "height": height},
         "render": {"look": look},
     })
@@ -56,8 +60,8 @@ def states(scenario: Scenario, n_frames: int):
     return simulate(scenario, n_frames), "harness.simulation"
 
 
-def bench(width: int, height: int, n_frames: int, look: str = "simple") -> None:
-    scenario = scenario_for(width, height, look)
+def bench(width: int, height: int, n_frames: int, look: str = "simple", street: bool = False) -> None:
+    scenario = scenario_for(width, height, look, street)
     with Renderer(scenario) as renderer:
         it, source = states(scenario, n_frames + 3)
         t_sim = t_render = t_truth = 0.0
@@ -79,7 +83,7 @@ def bench(width: int, height: int, n_frames: int, look: str = "simple") -> None:
             t_sim, t_render, t_truth = t_sim + b - a, t_render + c - b, t_truth + d - c
             n_obj += len(truth.objects)
         total, cpu = time.perf_counter() - t0, time.process_time() - c0
-    print(f"{look} look, {width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
+    print(f"{look} look{', street' if street else ''}, {width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
           f"{n_frames / total:.1f} frames/s (process CPU {1e3 * cpu / n_frames:.1f} ms/frame, all threads); per frame sim {1e3 * t_sim / n_frames:.1f} ms, "
           f"render {1e3 * t_render / n_frames:.1f} ms, truth {1e3 * t_truth / n_frames:.1f} ms")
 
@@ -88,10 +92,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=60)
     ap.add_argument("--look", choices=("simple", "realistic", "both"), default="both")
+    ap.add_argument("--street", action="store_true", help="an urban street with parked cars (road.street)")
     args = ap.parse_args()
     for look in ("simple", "realistic") if args.look == "both" else (args.look,):
         for w, h in ((640, 360), (1280, 720)):
-            bench(w, h, args.frames, look)
+            bench(w, h, args.frames, look, args.street)
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from harness.render import roadside, sky
+from harness.render import roadside, scenery, sky
 from harness.render.look import RoadsideLook, SkyLook, sample_look
 from harness.world.road_plan import RoadPlan
 from harness.world.road_profile import RoadProfile
@@ -52,12 +52,12 @@ def road_coords(points: np.ndarray, plan: RoadPlan | None, chunk: int = 4000) ->
 
 @pytest.fixture(scope="module")
 def curved():
-    return roadside.roadside_geometry(ROAD, PROFILE, PLAN, BUSY, sun(35, 70))
+    return scenery.roadside_geometry(ROAD, PROFILE, PLAN, BUSY, sun(35, 70))
 
 
 @pytest.fixture(scope="module")
 def straight():
-    return roadside.roadside_geometry(ROAD, None, None, BUSY, sun(35, 70))
+    return scenery.roadside_geometry(ROAD, None, None, BUSY, sun(35, 70))
 
 
 def _check_clear(geom: roadside.RoadsideGeometry, plan, profile) -> None:
@@ -195,7 +195,7 @@ def test_shadows_lie_on_the_graded_curved_ground_and_cross_the_road(curved):
 def test_gantry_shadow_falls_across_the_lanes():
     look = dataclasses.replace(BUSY, tree_density=0, bush_density=0, pole_spacing_m=0, sign_density=0,
                                guard_rail=False, median="none", gantry_spacing_m=500.0)
-    g = roadside.roadside_geometry(ROAD, None, None, look, sun(40, 90))
+    g = scenery.roadside_geometry(ROAD, None, None, look, sun(40, 90))
     gx = g.occluders.of("gantry").triangles[..., 0].mean()
     lo, hi = band(ROAD)
     c = g.shadows.mean(axis=1)
@@ -205,7 +205,7 @@ def test_gantry_shadow_falls_across_the_lanes():
 
 
 def test_no_shadows_with_the_sun_below_the_horizon(straight):
-    g = roadside.roadside_geometry(ROAD, None, None, BUSY, sun(-5, 70))
+    g = scenery.roadside_geometry(ROAD, None, None, BUSY, sun(-5, 70))
     assert len(g.shadows) == 0 and len(g.occluders) == len(straight.occluders)
 
 
@@ -230,19 +230,19 @@ def test_triangle_budget_at_the_densest_look(form, median):
     look = dataclasses.replace(BUSY, tree_form=form, median=median, tree_density=8.0, bush_density=10.0,
                                building_density=2.0, hill_height_m=80.0, gantry_spacing_m=500.0)
     road = Road(length_m=2000)
-    g = roadside.roadside_geometry(road, None, None, look, sun(30, 40))
+    g = scenery.roadside_geometry(road, None, None, look, sun(30, 40))
     km = (road.length_m + 2 * roadside.MARGIN_M) / 1000
     assert len(g.occluders) / km <= 60_000
     assert len(g.far) <= 15_000
 
 
 def test_same_seed_same_geometry_other_seed_other_layout(straight):
-    again = roadside.roadside_geometry(ROAD, None, None, BUSY, sun(35, 70))
+    again = scenery.roadside_geometry(ROAD, None, None, BUSY, sun(35, 70))
     for a, b in ((straight.occluders, again.occluders), (straight.far, again.far)):
         for f in ("triangles", "albedo", "normals", "kind"):
             assert np.array_equal(getattr(a, f), getattr(b, f))
     assert np.array_equal(straight.shadows, again.shadows)
-    other = roadside.roadside_geometry(ROAD, None, None, dataclasses.replace(BUSY, layout_seed=99), sun(35, 70))
+    other = scenery.roadside_geometry(ROAD, None, None, dataclasses.replace(BUSY, layout_seed=99), sun(35, 70))
     for kind in ("tree", "bush", "sign"):
         a, b = straight.occluders.of(kind).triangles, other.occluders.of(kind).triangles
         assert a.shape != b.shape or not np.allclose(a, b)
@@ -251,8 +251,8 @@ def test_same_seed_same_geometry_other_seed_other_layout(straight):
 
 
 def test_turning_one_kind_off_leaves_the_others():
-    a = roadside.roadside_geometry(ROAD, None, None, BUSY, sun(35, 70)).occluders
-    b = roadside.roadside_geometry(ROAD, None, None, dataclasses.replace(BUSY, bush_density=0.0),
+    a = scenery.roadside_geometry(ROAD, None, None, BUSY, sun(35, 70)).occluders
+    b = scenery.roadside_geometry(ROAD, None, None, dataclasses.replace(BUSY, bush_density=0.0),
                                    sun(35, 70)).occluders
     assert len(b.of("bush")) == 0
     assert np.array_equal(a.of("tree").triangles, b.of("tree").triangles)
@@ -339,7 +339,7 @@ def test_cloud_noise_tiles():
 
 def test_a_sampled_look_builds():
     look = sample_look(11, "heldout")
-    g = roadside.roadside_geometry(Road(length_m=400), None, None, look.roadside, sun(look.sun.elevation_deg,
+    g = scenery.roadside_geometry(Road(length_m=400), None, None, look.roadside, sun(look.sun.elevation_deg,
                                                                                   look.sun.azimuth_deg))
     tri, col = sky.sky_dome(look.sky, sun(look.sun.elevation_deg, look.sun.azimuth_deg))
     assert np.isfinite(g.occluders.triangles).all() and np.isfinite(tri).all() and np.isfinite(col).all()

@@ -175,11 +175,11 @@ def test_documented_defaults_table():
     import re
     from pathlib import Path
 
-    from harness.world.scenario import parse_scenario
+    from harness.world.scenario import Street, parse_scenario
 
     s = parse_scenario({"name": "x", "vehicles": [{"name": "a", "distance_m": 10}]})
     sections = {"Top level": s, "`road`": s.road, "`traffic`": s.traffic, "`ego`": s.ego,
-                "`vehicles`": s.vehicles[0], "`camera`": s.camera, "`render`": s.render}
+                "`vehicles`": s.vehicles[0], "`camera`": s.camera, "`render`": s.render, "`road.street`": Street()}
     text = (Path(__file__).resolve().parents[1] / "docs" / "scenarios.md").read_text(encoding="utf-8")
     target, checked = None, 0
     for line in text.splitlines():

@@ -9,7 +9,7 @@ import numpy as np
 
 from harness.world.fleet import SHARES
 from harness.world.scenario import parse_scenario
-from training.generate_data import dress, scenario_dict
+from training.generate_data import dress, scenario_dict, streetify
 
 
 def _drawn(seed: int, index: int, **kw) -> tuple[dict, dict]:
@@ -42,6 +42,21 @@ def test_dress_simple_and_no_fleet_is_the_plain_draw():
     assert d == sd
 
 
+def test_streetify_makes_valid_slow_streets_and_keeps_the_camera():
+    lanes = set()
+    for index in range(30):
+        sd = scenario_dict(np.random.default_rng([12, index]), index, 12, (1242, 375))
+        st = copy.deepcopy(sd)
+        streetify(np.random.default_rng([12, index, 0x57EE7]), st)
+        scen = parse_scenario(st)                       # valid: every placed vehicle on a lane that exists
+        assert scen.road.street is not None and 1 <= scen.road.lanes <= 2 and scen.road.shoulder_width_m >= 2.3
+        assert 6 <= scen.ego.speed_mps <= 14 and max(scen.traffic.speed_range_mps) <= 17
+        assert all(0 <= scen.ego.lane + v.lane < scen.road.lanes for v in scen.vehicles)
+        assert st["camera"] == sd["camera"] and st["render"] == sd["render"]
+        lanes.add(scen.road.lanes)
+    assert lanes == {1, 2}
+
+
 # ------------------------------------------------------------------ the shipped model
 
 
@@ -67,3 +82,29 @@ def test_realistic_model_is_small_registered_and_finds_a_car_in_a_realistic_rend
     assert 16.0 < lead.d_long < 20.0
     boxes = np.array([d.box for d in det.detect(image)], float).reshape(-1, 4)
     assert len(boxes) and iou(boxes, np.array(lead.box, float)[None]).max() >= 0.7
+
+
+def test_street_model_is_small_registered_and_finds_a_parked_car_in_a_street_render():
+    from monorarp.core.boxes import iou
+    from monorarp.detection.centernet import STREET_MODEL, StreetCenterNetDetector
+    from monorarp.pipeline.detectors import load_detector
+    from rendered_frame import first_frame
+
+    assert STREET_MODEL.stat().st_size <= 10_000_000
+    meta = STREET_MODEL.with_suffix(".json").read_text()
+    assert "no real image" in meta and '"validation_street"' in meta
+    scen, image, truth = first_frame({
+        "name": "street_check", "seed": 3, "duration_s": 1.0, "fps": 15.0,
+        "road": {"lanes": 2, "lane_width_m": 3.25, "shoulder_width_m": 2.4, "street": {"parked_per_100m": 6}},
+        "ego": {"lane": 1, "speed_mps": 10.0}, "traffic": {"vehicles_count": 0},
+        "vehicles": [{"name": "lead", "lane": 0, "distance_m": 14.0, "speed_mps": 10.0,
+                      "behaviour": "constant_speed", "body": "hatchback"}],
+        "camera": {"width": 640, "height": 360, "hfov_deg": 70, "height_m": 1.5, "pitch_deg": 1.0},
+        "render": {"look": "realistic", "look_family": "heldout", "look_seed": 7}})
+    det = load_detector("centernet_street", camera=scen.camera.model())
+    assert isinstance(det, StreetCenterNetDetector) and det.path == STREET_MODEL
+    boxes = np.array([d.box for d in det.detect(image)], float).reshape(-1, 4)
+    near = [o for o in truth.objects if o.visibility > 0.8 and o.box[3] - o.box[1] > 30]
+    assert len(near) >= 2 and {o.id >= 100_000 for o in near} == {True, False}   # the lead and a parked car
+    for o in near:
+        assert len(boxes) and iou(boxes, np.array(o.box, float)[None]).max() >= 0.6, o

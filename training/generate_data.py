@@ -26,6 +26,8 @@ look seed drawn from the scenario's own random stream; ``--conditions``/``--appe
 With ``--fleet mixed`` the traffic is a real motorway fleet (``traffic.fleet: mixed``, :mod:`harness.world.fleet`:
 hatchbacks, saloons, estates, SUVs, vans, pickups, box trucks, artics, buses) and every placed vehicle's body
 and footprint is drawn from the same fleet (its own random stream).
+With ``--street P`` a fraction P of the scenarios are urban streets (:func:`streetify`: 1-2 narrow lanes, parked
+cars along the kerbs, pavements and, in the realistic look, the street frontage), from their own random stream.
 
     python -m training.generate_data --out data/train --scenarios 300 --seed 0
     python -m training.generate_data --out data/val --scenarios 40 --seed 100000 --resolutions 640x360
@@ -142,6 +144,27 @@ def densify(rng: np.random.Generator, sd: dict) -> None:
                            "width_m": round(float(rng.uniform(1.6, 2.1)), 2)})
 
 
+def streetify(rng: np.random.Generator, sd: dict) -> None:
+    """Make a :func:`scenario_dict` scenario an urban street, in place (``road.street``,
+    :mod:`harness.simulation.parking`, :mod:`harness.render.street`): 1-2 lanes 2.75-3.5 m wide, parking strips
+    2.3-2.7 m with 4-16 parked cars per 100 m on both sides (one in five: the right only), pavements 1.5-4 m;
+    the ego at 6-14 m/s among 2-10 slow vehicles; the placed vehicles kept where their lane still exists."""
+    lanes = int(rng.integers(1, 3))
+    ego_lane = int(rng.integers(0, lanes))
+    speed = float(rng.uniform(6, 14))
+    sd["road"] = {"lanes": lanes, "lane_width_m": round(float(rng.uniform(2.75, 3.5)), 2), "length_m": 3000.0,
+                  "shoulder_width_m": round(float(rng.uniform(2.3, 2.7)), 2), "speed_limit_mps": 14.0,
+                  "street": {"parking": "right" if rng.random() < 0.2 else "both",
+                             "parked_per_100m": round(float(rng.uniform(4, 16)), 1),
+                             "facing_traffic_share": round(float(rng.uniform(0.6, 0.95)), 2),
+                             "pavement_m": round(float(rng.uniform(1.5, 4.0)), 2)}}
+    sd["ego"] = {"lane": ego_lane, "speed_mps": round(speed, 2)}
+    sd["traffic"] = {"vehicles_count": int(rng.integers(2, 11)), "density": round(float(rng.uniform(0.6, 1.5)), 2),
+                     "speed_range_mps": [round(max(speed - 3, 0.0), 1), round(speed + 3, 1)]}
+    sd["vehicles"] = [v | {"speed_mps": round(max(0.0, speed + float(rng.normal(0, 1.5))), 2)}
+                      for v in sd["vehicles"] if -ego_lane <= v["lane"] < lanes - ego_lane]
+
+
 def random_dimensions(rng: np.random.Generator, vehicles: list[dict]) -> None:
     """Redraw the placed vehicles' footprints (m) in place from wider ranges than :func:`scenario_dict`'s:
     cars and vans 3.4-6.8 m x 1.5-2.2 m (over 5.5 m the mesh is a tall van), 25 % trucks 7.5-18 m x 2.3-2.6 m."""
@@ -211,7 +234,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
              resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
              fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1,
              conditions: float = 0.0, styled: float = 0.0, family: str = "train", dense: float = 0.0,
-             look: str = "simple", look_family: str = "train", fleet: str = "none") -> None:
+             look: str = "simple", look_family: str = "train", fleet: str = "none", street: float = 0.0) -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
     the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
@@ -226,7 +249,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
     and wider placed-vehicle dimensions. A fraction ``dense`` is made dense occluding traffic (:func:`densify`).
     ``look`` ``realistic`` renders every scenario with the realistic look of ``look_family`` (look seed from
     the scenario's own stream ``[seed, index, 0x100C]``). ``fleet`` ``mixed``: a mixed fleet in the traffic and
-    the placed vehicles' bodies drawn from it (stream ``[seed, index, 0xF1EE]``)."""
+    the placed vehicles' bodies drawn from it (stream ``[seed, index, 0xF1EE]``). A fraction ``street`` is made
+    urban streets with parked cars (:func:`streetify`, stream ``[seed, index, 0x57EE7]``; never dense)."""
     if look == "realistic" and (conditions > 0 or styled > 0):
         raise SystemExit("--look realistic does not combine with --conditions or --appearance")
     if keep_source and (len(set(resolutions)) != 1 or fovea):
@@ -243,8 +267,12 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         res = resolutions[int(rng.integers(len(resolutions)))]
         try:
             sd = scenario_dict(rng, s, seed, res)
+            srng = np.random.default_rng([seed, s, 0x57EE7])
+            is_street = srng.random() < street
+            if is_street:
+                streetify(srng, sd)
             drng = np.random.default_rng([seed, s, 0xDE5])
-            if drng.random() < dense:
+            if drng.random() < dense and not is_street:
                 densify(drng, sd)
             crng = np.random.default_rng([seed, s, 0xC0D])
             if crng.random() < conditions:
@@ -311,7 +339,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         "resolutions": [list(r) for r in resolutions], "min_visibility": min_visibility,
         "min_size_net_px": min_size, "fovea": fovea, "conditions_fraction": conditions,
         "appearance_fraction": styled, "appearance_family": family, "dense_fraction": dense,
-        "look": look, "look_family": look_family, "fleet": fleet, "images": metas}, indent=1))
+        "look": look, "look_family": look_family, "fleet": fleet}
+        | ({"street_fraction": street} if street else {}) | {"images": metas}, indent=1))
     req = sum(m["n_required"] for m in metas)
     print(f"wrote {len(images)} images, {req} required boxes, {len(rows) - req} ignored to {out} "
           f"({skipped} scenarios skipped) in {time.time() - t0:.0f}s", flush=True)
@@ -348,6 +377,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--fleet", choices=("none", "mixed"), default="none",
                     help="traffic fleet: none (the simulator's 5 x 2 m cars; placed sizes as drawn) or mixed "
                          "(harness.world.fleet body types for traffic and placed vehicles)")
+    ap.add_argument("--street", type=float, default=0.0, metavar="P",
+                    help="fraction of scenarios made urban streets with parked cars (streetify; default 0)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
@@ -357,9 +388,11 @@ def main(argv: list[str] | None = None) -> None:
         ap.error("--dense must be a fraction in [0, 1]")
     if not 0.0 <= a.appearance <= 1.0:
         ap.error("--appearance must be a fraction in [0, 1]")
+    if not 0.0 <= a.street <= 1.0:
+        ap.error("--street must be a fraction in [0, 1]")
     generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
              a.keep_source, a.truth_supersample, a.conditions, a.appearance, a.appearance_family, a.dense,
-             a.look, a.look_family, a.fleet)
+             a.look, a.look_family, a.fleet, a.street)
 
 
 if __name__ == "__main__":

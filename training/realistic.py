@@ -31,6 +31,10 @@ VAL_NOTE = (f"{VAL[1]} scenarios (seed {VAL[0]}), {VAL[2]} frames each, 640x360 
             "held-out family, mixed fleet; required boxes: visibility >= 0.3 and >= 3 px at 320x192 (others ignored)")
 
 
+LOSS = ("focal (heatmap) + L1 on edge distances (Gaussian-weighted, each vehicle's weights sum to 1, "
+        "bottom edge x2)")
+
+
 def val_dir(d: Path) -> Path:
     return d / "val_realistic"
 
@@ -53,14 +57,18 @@ def make_data(d: Path, force: bool) -> list[Path]:
     return shards
 
 
+def from_scratch(shards: list[Path], ckpt: Path, force: bool, epochs: int = EPOCHS, batch: int = BATCH,
+                 lr: float = LR, seed: int = SEED) -> Path:
+    """Train the net from scratch on ``shards`` into ``ckpt`` (skipped when it exists, unless ``force``)."""
+    if force or not ckpt.exists():
+        train.main(["--data", *map(str, shards), "--out", str(ckpt), "--epochs", str(epochs), "--batch", str(batch),
+                    "--lr", str(lr), "--seed", str(seed)])
+    return ckpt
+
+
 def checkpoint(d: Path, force: bool) -> Path:
     """Data, then training from scratch; return the checkpoint."""
-    shards = make_data(d, force)
-    ckpt = d / "centernet_realistic.pt"
-    if force or not ckpt.exists():
-        train.main(["--data", *map(str, shards), "--out", str(ckpt), "--epochs", str(EPOCHS), "--batch", str(BATCH),
-                    "--lr", str(LR), "--seed", str(SEED)])
-    return ckpt
+    return from_scratch(make_data(d, force), d / "centernet_realistic.pt", force)
 
 
 def training_card() -> dict:
@@ -74,7 +82,5 @@ def training_card() -> dict:
                 "(harness.world.fleet: nine body types, traffic and placed vehicles), a fraction "
                 f"{DENSE} dense occluding traffic, resolutions {RESOLUTIONS}; the seed-{SHARDS[1][0]} scenarios also "
                 "give each frame's fovea crop; no real image",
-        "epochs": EPOCHS, "batch": BATCH, "lr": LR, "seed": SEED,
-        "loss": "focal (heatmap) + L1 on edge distances (Gaussian-weighted, each vehicle's weights sum to 1, "
-                "bottom edge x2)",
+        "epochs": EPOCHS, "batch": BATCH, "lr": LR, "seed": SEED, "loss": LOSS,
     }

@@ -10,6 +10,7 @@ second pass sees.
     python -m training.reproduce --variant robust   # centernet_vehicle_robust.{onnx,json} (training.robust)
     python -m training.reproduce --variant dense    # centernet_vehicle_dense.{onnx,json} (training.dense)
     python -m training.reproduce --variant realistic  # centernet_vehicle_realistic.{onnx,json} (training.realistic)
+    python -m training.reproduce --variant street     # centernet_vehicle_street.{onnx,json} (training.street)
 
 Stages are skipped when their output exists (``--force`` redoes them). Everything is
 seeded; the renderer (Mesa llvmpipe) and torch's CPU kernels are deterministic on
@@ -27,7 +28,7 @@ import cv2
 import numpy as np
 
 from monorarp.core.camera import CameraModel
-from training import dense, evaluate, export, generate_data, realistic, robust, train
+from training import dense, evaluate, export, generate_data, realistic, robust, street, train
 from training.data import Dataset
 
 TRAIN_SHARDS = ((0, 150), (1, 150))       # (seed, scenarios); 10 frames each
@@ -114,16 +115,17 @@ def val_figures(model: Path, data: Path) -> dict:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--data", type=Path, default=Path("data"))
-    ap.add_argument("--variant", choices=("shipped", "robust", "dense", "realistic"), default="shipped",
+    ap.add_argument("--variant", choices=("shipped", "robust", "dense", "realistic", "street"), default="shipped",
                     help="shipped: centernet_vehicle; robust: centernet_vehicle_robust (training.robust); "
                          "dense: centernet_vehicle_dense (training.dense); realistic: "
-                         "centernet_vehicle_realistic (training.realistic)")
+                         "centernet_vehicle_realistic (training.realistic); street: centernet_vehicle_street "
+                         "(training.street)")
     ap.add_argument("--out", type=Path, default=None, help="default: the variant's file in monorarp/models/")
     ap.add_argument("--force", action="store_true")
     a = ap.parse_args(argv)
     d = a.data
     robust_variant = a.variant == "robust"
-    out = a.out or {"robust": robust.OUT, "dense": dense.OUT, "realistic": realistic.OUT}.get(
+    out = a.out or {"robust": robust.OUT, "dense": dense.OUT, "realistic": realistic.OUT, "street": street.OUT}.get(
         a.variant, Path("monorarp/models/centernet_vehicle.onnx"))
     vs, vn, vf = VAL
     if a.force or not (d / "val" / "meta.json").exists():
@@ -133,6 +135,8 @@ def main(argv: list[str] | None = None) -> None:
         ckpt = dense.checkpoint(d, shipped_data(d, a.force), a.force)
     elif a.variant == "realistic":
         ckpt = realistic.checkpoint(d, a.force)
+    elif a.variant == "street":
+        ckpt = street.checkpoint(d, a.force)
     else:
         ckpt = robust.checkpoint(d, a.force) if robust_variant else shipped_checkpoint(d, a.force)
     export.export(ckpt, out, d / "val")
@@ -147,6 +151,12 @@ def main(argv: list[str] | None = None) -> None:
     elif a.variant == "realistic":   # threshold: best F1 on the held-out realistic renders
         extra_realistic = val_figures(out, realistic.val_dir(d))
         thr = extra_realistic["f1_best"]["score_threshold"] or 0.3
+    elif a.variant == "street":      # threshold: best F1 on the held-out realistic motorways and streets together
+        extra_realistic = val_figures(out, realistic.val_dir(d))
+        extra_street = val_figures(out, street.val_dir(d))
+        ds_thr = Dataset.concat([realistic.val_dir(d), street.val_dir(d)])
+        det = evaluate.CenterNetDetector(out, score_threshold=0.05, refine_bottom=False)
+        thr = evaluate.figures(*evaluate.predict(det, ds_thr), ds_thr)["f1_best"]["score_threshold"] or 0.3
     else:
         thr = figs["f1_best"]["score_threshold"] or 0.3
     ds = Dataset.load(d / "val")
@@ -163,14 +173,16 @@ def main(argv: list[str] | None = None) -> None:
     val_note = (f"{VAL[1]} scenarios (seed {VAL[0]}), {VAL[2]} frames each, 640x360; "
                 "required boxes: visibility >= 0.3 and >= 3 px at 320x192 (others ignored)")
     cards = {"robust": robust.training_card, "dense": lambda: dense.training_card(training_card()["data"]),
-             "realistic": realistic.training_card}
+             "realistic": realistic.training_card, "street": street.training_card}
     meta = model_card(out.stem, thr, out) | {
         "training": cards.get(a.variant, training_card)(),
         "validation": {"data": val_note, **figs}}
     if a.variant == "dense":
         meta["validation_dense"] = {"data": dense.VAL_NOTE, **val_figures(out, dense.val_dir(d))}
-    if a.variant == "realistic":
+    if a.variant in ("realistic", "street"):
         meta["validation_realistic"] = {"data": realistic.VAL_NOTE, **extra_realistic}
+    if a.variant == "street":
+        meta["validation_street"] = {"data": street.VAL_NOTE, **extra_street}
     for k, f in extra.items():
         sv = robust.STYLE_VAL
         style = {"unstyled": "no style", "styled": "a style of the training family",

@@ -10,6 +10,10 @@ beside it, the sun is in the sky), not as uniform clutter. Two families:
   layout seed comes from a disjoint set (odd against even), and the discrete choices that shape
   the scene most (tree form, median kind) are drawn from variants the training family never uses.
 
+An urban street (``road.street``) adds :class:`StreetLook` (facades, roofs, garden walls, hedges,
+street trees; :func:`sample_street`), drawn from a generator of its own: no other field depends on it.
+Its facade palette and roof form are disjoint per family as well.
+
 Units: lengths m, angles deg, colours sRGB 0..255, densities per 100 m of road per side.
 """
 
@@ -26,6 +30,9 @@ LookName = Literal["simple", "realistic"]
 #: Discrete variants per family: the held-out family draws only from variants training never sees.
 TREE_FORMS: dict[str, tuple[str, ...]] = {"train": ("broadleaf", "conifer"), "heldout": ("poplar", "shrubby")}
 MEDIAN_KINDS: dict[str, tuple[str, ...]] = {"train": ("concrete", "rail"), "heldout": ("concrete_low", "none")}
+#: The street frontage's (:mod:`harness.render.street`) discrete variants, disjoint per family likewise.
+FACADE_PALETTES: dict[str, tuple[str, ...]] = {"train": ("pastel", "brick"), "heldout": ("white", "stone")}
+ROOF_FORMS: dict[str, tuple[str, ...]] = {"train": ("eaves", "gable_front"), "heldout": ("hipped", "flat")}
 
 
 @dataclass(frozen=True)
@@ -58,6 +65,32 @@ class RoadsideLook:
     gantry_spacing_m: float              # overhead gantries; 0: none
     building_density: float              # far buildings per 100 m
     hill_height_m: float                 # hills on the horizon
+    layout_seed: int
+
+
+@dataclass(frozen=True)
+class StreetLook:
+    """The frontage of an urban street (used only where ``road.street`` is set; per side unless stated).
+    Ranges are (low, high); shares are of the frontage's length."""
+
+    house_share: float                   # share of plots holding a house (the rest: gardens, drives)
+    house_width_m: tuple[float, float]   # along the road, within 6..15
+    house_gap_m: float                   # mean gap between neighbouring houses
+    storeys: tuple[int, int]             # within 2..4, about 3 m each
+    setback_m: tuple[float, float]       # from the pavement's outer edge to the facade, within 0..6
+    facade_palette: str                  # one of FACADE_PALETTES
+    roof_form: str                       # main roof form: one of ROOF_FORMS (the family's other form mixed in)
+    roof_mix: float                      # share of houses with the family's other roof form
+    wall_share: float                    # garden walls along the pavement's outer edge
+    hedge_share: float
+    fence_share: float                   # (the rest: open)
+    tree_density: float                  # street trees on the pavement per 100 m
+    lamp_spacing_m: float                # lamp posts; 0: none
+    sign_density: float                  # sign poles per 100 m
+    cabinet_density: float               # street cabinets per 100 m
+    kerb_srgb: tuple[int, int, int]
+    pavement_srgb: tuple[int, int, int]
+    slab_m: float                        # paving slab size (m, square)
     layout_seed: int
 
 
@@ -108,6 +141,7 @@ class LookParams:
     sun: SunLook
     sensor: SensorLook
     vehicle: VehicleLook
+    street: StreetLook
 
 
 def _seed(rng: np.random.Generator, family: Family) -> int:
@@ -167,7 +201,36 @@ def sample_look(seed: int, family: Family = "train") -> LookParams:
         defocus_px=float(rng.uniform(0.0, 0.8)),
         jpeg_quality=int(rng.integers(55, 92)))
     vehicle = VehicleLook(dirt=float(rng.uniform(0, 0.5)), gloss=float(rng.uniform(0.2, 0.8)))
-    return LookParams(family, int(seed), surface, roadside, sky, sun, sensor, vehicle)
+    return LookParams(family, int(seed), surface, roadside, sky, sun, sensor, vehicle, sample_street(seed, family))
+
+
+def sample_street(seed: int, family: Family = "train") -> StreetLook:
+    """The street frontage of look ``seed`` in ``family``, from its own generator (so that every other
+    field of :func:`sample_look` keeps the value it had before streets existed)."""
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x57EE7, family == "heldout"])
+    w_lo = float(rng.uniform(6, 10))
+    s_lo = int(rng.integers(2, 4))
+    set_lo = float(rng.uniform(0, 3))
+    shares = rng.dirichlet([2.0, 3.0, 1.5, 1.0])          # wall, hedge, fence, open
+    pave = rng.uniform(150, 195)
+    return StreetLook(
+        house_share=float(rng.uniform(0.6, 0.95)),
+        house_width_m=(w_lo, float(rng.uniform(w_lo + 2, 15))),
+        house_gap_m=float(rng.uniform(1.5, 7)),
+        storeys=(s_lo, min(4, s_lo + int(rng.integers(0, 2)))),
+        setback_m=(set_lo, float(rng.uniform(set_lo + 1, 6))),
+        facade_palette=str(rng.choice(FACADE_PALETTES[family])),
+        roof_form=str(rng.choice(ROOF_FORMS[family])),
+        roof_mix=float(rng.uniform(0, 0.4)),
+        wall_share=float(shares[0]), hedge_share=float(shares[1]), fence_share=float(shares[2]),
+        tree_density=float(rng.uniform(1, 10)),
+        lamp_spacing_m=float(rng.choice([0.0, 25.0, 35.0])),
+        sign_density=float(rng.uniform(0, 2)),
+        cabinet_density=float(rng.uniform(0, 2)),
+        kerb_srgb=_rgb(rng, (178, 176, 170), (14, 14, 14)),
+        pavement_srgb=_rgb(rng, (pave, pave - 3, pave - 8), (10, 10, 10)),
+        slab_m=float(rng.choice([0.3, 0.4, 0.6])),
+        layout_seed=_seed(rng, family))
 
 
 def sun_direction_w(sun: SunLook) -> np.ndarray:

@@ -3,7 +3,8 @@ differently when ``render.look`` is ``realistic``.
 
 - the road's surfaces textured (:mod:`~harness.render.textures`), their shading in the vertex colours;
 - the roadside (:mod:`~harness.render.roadside`): occluders (rails, median, trees, bushes, poles,
-  signs, gantries), the far set (buildings, hills) and the shadows the occluders cast on the ground;
+  signs, gantries; on a street kerbs and the frontage of :mod:`~harness.render.street`), the far set
+  (buildings, hills) and the shadows the occluders cast on the ground;
 - a sky dome (:mod:`~harness.render.sky`) kept centred on the camera, in :data:`DOME_SECTORS` nodes (and the
   far set in :data:`FAR_CELL_M` cells) so the renderer can skip those outside the view;
 - detailed vehicles (:func:`harness.render.meshes.vehicle_faces_detailed`) shaded by
@@ -25,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyrender
 
-from harness.render import camera_sensor, materials, meshes, roadside, shadows, sky, textures
+from harness.render import camera_sensor, materials, meshes, scenery, shadows, sky, textures
 from harness.render.look import LookParams, sample_look, sun_direction_w
 from harness.render.road import road_surface_uv
 from harness.world.road_plan import RoadPlan
@@ -145,11 +146,13 @@ class RealisticScene:
         road = scenario.road
         texs = textures.road_textures(look.surface, road.lane_width_m)
         tiling = textures.road_tiling(look.surface)
+        if road.street is not None:
+            texs["pavement"] = textures.pavement_texture(look.surface, look.street, tiling.pavement_m)
         for kind, (tri, uv) in road_surface_uv(road, profile, plan, tiling).items():
             albedo = textures.mean_srgb(texs[kind])
             shaded = self._shade_matte(np.tile(albedo, (len(tri), 1)), face_normals(tri))
             add_mesh(scene, textures.textured_mesh(tri, uv, textures.vertex_rgb(shaded, albedo), texs[kind]))
-        geo = roadside.roadside_geometry(road, profile, plan, look.roadside, self.sun_w)
+        geo = scenery.roadside_geometry(road, profile, plan, look.roadside, self.sun_w, look.street)
         self.occluder_nodes: list[pyrender.Node] = []
         self._cells: list[tuple[pyrender.Node, np.ndarray]] = []     # (node, cell centre XY) of culled nodes
         self._centres: np.ndarray | None = None                       # (C, 2) those centres, stacked

@@ -97,6 +97,20 @@ def _add_mesh(scene: pyrender.Scene, mesh: pyrender.Mesh, pose: np.ndarray | Non
     return node
 
 
+def _set_mesh(scene: pyrender.Scene, node: pyrender.Node, mesh: pyrender.Mesh) -> None:
+    """Give ``node`` a new mesh in place (its pose and draw order kept), keeping pyrender's object -> nodes
+    index true: ``node.mesh = mesh`` alone leaves the old mesh indexed, and ``scene.remove_node`` of the node
+    later fails (a vehicle that leaves the frame after a level-of-detail or heading-bin swap)."""
+    index = scene._obj_to_nodes
+    old = index.get(node.mesh)
+    if old is not None:
+        old.discard(node)
+        if not old:
+            index.pop(node.mesh)
+    node.mesh = mesh
+    index.setdefault(mesh, set()).add(node)
+
+
 def _release(pr: pyrender.OffscreenRenderer) -> None:
     """Free ``pr``'s GL context; the shared EGL display is terminated only by the last live renderer.
 
@@ -295,7 +309,7 @@ class Renderer:
             else:
                 if entry.heading_bin != hbin:
                     entry.heading_bin = hbin
-                    entry.node.mesh = self._vehicle_mesh(entry)
+                    _set_mesh(self._scene, entry.node, self._vehicle_mesh(entry))
                     if entry.parts is not None:
                         self._set_shadow(entry, pose)
                 self._scene.set_pose(entry.node, pose)
@@ -315,7 +329,7 @@ class Renderer:
                 make = self._real.far_parts if far else self._real.vehicle_parts
                 entry.parts = make(v.length, v.width, v.id, v.body)
                 entry.triangles, entry.normals, entry.albedo = entry.parts.triangles, entry.parts.normals, entry.parts.albedo
-                entry.node.mesh = self._vehicle_mesh(entry)
+                _set_mesh(self._scene, entry.node, self._vehicle_mesh(entry))
 
     def _cull_outside_view(self, cam_pose: np.ndarray, camera: CameraModel) -> None:
         """Realistic look: hide the roadside cells, far-set cells, sky-dome sectors and vehicle shadows whose

@@ -10,6 +10,10 @@ Lane boundary i (0..lanes) is the line y = (i - 0.5) * lane_width; a marking of
 edge line's centre (at least to its outer side); grass beyond, and before/after
 the road's ends.
 
+An urban street (``road.street``): the shoulders are parking strips of asphalt, and beyond each a
+``pavement`` strip ``KERB_WIDTH_M + street.pavement_m`` wide (the kerb, :mod:`harness.render.street`,
+stands on its inner ``KERB_WIDTH_M``) before the grass.
+
 With a vertical profile (:mod:`harness.world.road_profile`) every rectangle is cut across the road at
 the profile's sample points (1 m apart inside each vertical curve) and each vertex lifted to
 ``z(x)``, so the surfaces bend with the road and still tile it.
@@ -47,7 +51,10 @@ SURFACE_COLORS = {  # RGB 0..255
     "marking": (235, 235, 228),
     "shoulder": (112, 106, 96),
     "grass": (66, 96, 44),
+    "pavement": (160, 157, 150),
 }
+KERB_WIDTH_M, KERB_HEIGHT_M = 0.15, 0.12
+"""A street's kerb (m): across the road and above it, at the parking strip's outer edge."""
 
 
 def road_rectangles(road: Road, grass_m: float = GRASS_EXTENT_M) -> dict[str, np.ndarray]:
@@ -80,8 +87,13 @@ def road_rectangles(road: Road, grass_m: float = GRASS_EXTENT_M) -> dict[str, np
         for x0, x1 in zip(g0[keep], g1[keep]):
             rects["asphalt"].append([x0, x1, yb - half, yb + half])
 
-    # Shoulders, then grass all around.
-    rects["shoulder"] += [[0.0, length, out_l, y_left - half], [0.0, length, y_right + half, out_r]]
+    # Shoulders (a street's parking strips and pavements), then grass all around.
+    strip = "shoulder" if road.street is None else "asphalt"
+    rects[strip] += [[0.0, length, out_l, y_left - half], [0.0, length, y_right + half, out_r]]
+    if road.street is not None:
+        walk = KERB_WIDTH_M + road.street.pavement_m
+        rects["pavement"] += [[0.0, length, out_l - walk, out_l], [0.0, length, out_r, out_r + walk]]
+        out_l, out_r = out_l - walk, out_r + walk
     g = grass_m
     rects["grass"] += [[-g, length + g, out_l - g, out_l], [-g, length + g, out_r, out_r + g],
                        [-g, 0.0, out_l, out_r], [length, length + g, out_l, out_r]]
@@ -141,7 +153,7 @@ def _road_pieces(road: Road, plan: RoadPlan | None) -> dict[str, np.ndarray]:
 
 def road_trimeshes(road: Road, profile: RoadProfile | None = None,
                    plan: RoadPlan | None = None) -> dict[str, trimesh.Trimesh]:
-    """One merged W-frame mesh per surface kind (asphalt, marking, shoulder, grass)."""
+    """One merged W-frame mesh per surface kind (asphalt, marking, shoulder, grass; a street's pavement)."""
     rects = _road_pieces(road, plan)
     return {k: rectangles_trimesh(r, SURFACE_COLORS[k], profile, plan) for k, r in rects.items() if len(r)}
 
@@ -161,6 +173,7 @@ class Tiling:
     marking_m: tuple[float, float] = (4.0, 0.5)
     shoulder_m: tuple[float, float] = (8.0, 4.0)
     grass_m: tuple[float, float] = (16.0, 4.0)
+    pavement_m: tuple[float, float] = (4.8, 2.4)
 
 
 def lane_shift_m(lane: np.ndarray, tiling: Tiling) -> np.ndarray:

@@ -1,6 +1,6 @@
 """What stands beside the road in the realistic look, as static geometry (pure numpy/trimesh).
 
-:func:`roadside_geometry` turns a :class:`~harness.render.look.RoadsideLook` into three sets of
+:func:`harness.render.scenery.roadside_geometry` turns a :class:`~harness.render.look.RoadsideLook` into three sets of
 triangles in the world frame W (X along the road, Y = -y to the left, Z up; m):
 
 - ``occluders``: what can stand between the camera and a vehicle: the W-beam guard rail on the
@@ -23,6 +23,11 @@ object (tree, pole, sign, gantry, building) is placed rigidly at its anchor's pl
 heading ``theta(x)`` and ground height ``z(x)``; trunks and posts reach 0.3-0.5 m into the ground
 so a slope under them leaves no gap. With a plan, compact objects stay within ``0.5 R_min`` of the
 road (where :mod:`harness.render.road`'s grass ends).
+
+A street (``road.street``): the clear band is the carriageway and the parking strips (the shoulders),
+no margin; no rail, median, poles, signs or gantries; kerbs, pavements' furniture and the frontage of
+:mod:`harness.render.street` instead, and the verge's trees and bushes only ``STREET_TREES_BEYOND_M``
+behind the pavements.
 
 Every object's size and colour is drawn from ``layout_seed`` (one generator per kind, so turning
 one kind off leaves the others where they were): same inputs, same geometry. Faces are wound
@@ -69,7 +74,9 @@ MIN_SUN_ELEVATION_DEG = 3.0
 """No shadows below this sun elevation."""
 MAX_BUILDINGS = 700
 """At most this many buildings (16 triangles each): with the hills, the far set stays under 15k."""
-KINDS = ("rail", "median", "tree", "bush", "pole", "sign", "gantry", "building", "hill")
+KINDS = ("rail", "median", "tree", "bush", "pole", "sign", "gantry", "building", "hill",
+         "kerb", "house", "facade", "boundary", "street_tree", "furniture")
+"""Kinds of faces; the last six are a street's (:mod:`harness.render.street`)."""
 
 
 @dataclass(frozen=True)
@@ -196,9 +203,11 @@ class Ground:
 
 
 def clear_band(road: Road) -> tuple[float, float]:
-    """Road-frame ``y`` range (m) kept clear: the carriageway, the shoulders and 0.5 m beyond."""
+    """Road-frame ``y`` range (m) kept clear: the carriageway, the shoulders and 0.5 m beyond; on a street
+    the carriageway and the parking strips (the shoulders), whose outer edges the kerbs stand on."""
     y_left, y_right = -0.5 * road.lane_width_m, (road.lanes - 0.5) * road.lane_width_m
-    return y_left - road.shoulder_width_m - CLEAR_MARGIN_M, y_right + road.shoulder_width_m + CLEAR_MARGIN_M
+    margin = CLEAR_MARGIN_M if road.street is None else 0.0
+    return y_left - road.shoulder_width_m - margin, y_right + road.shoulder_width_m + margin
 
 
 # --------------------------------------------------------------------------- primitives
@@ -206,7 +215,7 @@ def clear_band(road: Road) -> tuple[float, float]:
 # (verts (n, V, 3), faces (F, 3)) with the faces counter-clockwise seen from outside.
 
 @functools.cache
-def _sphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+def unit_sphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
     s = trimesh.creation.icosphere(subdivisions=subdivisions)
     return np.asarray(s.vertices, dtype=float), np.asarray(s.faces, dtype=np.int64)
 
@@ -256,7 +265,7 @@ def blobs(rng: np.random.Generator, centre: np.ndarray, radii: np.ndarray, subdi
           jitter: float) -> tuple[np.ndarray, np.ndarray]:
     """Ellipsoids (n, 3) centres and semi-axes, each vertex moved radially by up to ``jitter``
     (fraction) at random and the whole turned about the vertical at random: lumps of foliage."""
-    v, f = _sphere(subdivisions)
+    v, f = unit_sphere(subdivisions)
     n = len(centre)
     scale = 1 + rng.uniform(-jitter, jitter, (n, len(v), 1))
     yaw = rng.uniform(0, 2 * np.pi, n)[:, None]
@@ -268,7 +277,7 @@ def blobs(rng: np.random.Generator, centre: np.ndarray, radii: np.ndarray, subdi
 
 # --------------------------------------------------------------------------- assembly
 @dataclass
-class _Batch:
+class Batch:
     """n instances of one part: W vertices (n, V, 3), template faces (F, 3), albedo (n, F, 3)."""
 
     verts: np.ndarray
@@ -277,7 +286,7 @@ class _Batch:
     kind: str
 
 
-def _albedo(rng: np.random.Generator, base, spread, n: int, n_faces: int, face_jitter: float = 0.0) -> np.ndarray:
+def albedo_draw(rng: np.random.Generator, base, spread, n: int, n_faces: int, face_jitter: float = 0.0) -> np.ndarray:
     """(n, F, 3) colours: ``base`` +- ``spread`` per instance (one draw scales all three channels
     and a smaller one tints), times 1 +- ``face_jitter`` per face."""
     base, spread = np.asarray(base, float), np.asarray(spread, float)
@@ -288,7 +297,7 @@ def _albedo(rng: np.random.Generator, base, spread, n: int, n_faces: int, face_j
     return col
 
 
-def _faces(batches: list[_Batch]) -> Faces:
+def faces_of(batches: list[Batch]) -> Faces:
     tris, alb, kind = [], [], []
     for b in batches:
         if len(b.verts) == 0:
@@ -310,7 +319,7 @@ def _faces(batches: list[_Batch]) -> Faces:
 
 
 @dataclass(frozen=True)
-class _Layout:
+class Layout:
     """Where things may stand: road x range and the clear band's edges in yl = -y."""
 
     x0: float
@@ -325,7 +334,7 @@ class _Layout:
         return np.where(side > 0, self.edge_left + d, self.edge_right - d)
 
 
-def _xs_along(rng: np.random.Generator, lay: _Layout, per_100m: float, group_mean: float,
+def _xs_along(rng: np.random.Generator, lay: Layout, per_100m: float, group_mean: float,
               spread_m: float) -> np.ndarray:
     """Road x of objects at ``per_100m`` on average, in groups of ``group_mean`` spread ``spread_m``."""
     span = lay.x1 - lay.x0
@@ -336,7 +345,7 @@ def _xs_along(rng: np.random.Generator, lay: _Layout, per_100m: float, group_mea
     return np.sort(x[(x >= lay.x0) & (x <= lay.x1)])
 
 
-def _stations(ground: Ground, x0: float, x1: float) -> np.ndarray:
+def stations(ground: Ground, x0: float, x1: float) -> np.ndarray:
     xs = [np.linspace(x0, x1, int(math.ceil((x1 - x0) / STATION_STEP_M)) + 1)]
     for part in (ground.plan, ground.profile):
         if part is not None:
@@ -345,7 +354,7 @@ def _stations(ground: Ground, x0: float, x1: float) -> np.ndarray:
     return xs[(xs >= x0) & (xs <= x1)]
 
 
-def _sweep(ground: Ground, xs: np.ndarray, section: np.ndarray, closed: bool) -> tuple[np.ndarray, np.ndarray]:
+def sweep(ground: Ground, xs: np.ndarray, section: np.ndarray, closed: bool) -> tuple[np.ndarray, np.ndarray]:
     """A cross-section (P, 2) of (yl, h) swept along road stations ``xs`` (m), every vertex bent
     with the road: per segment (m - 1, 2P, 3) W vertices and faces (outward; ``closed=False``
     leaves out the last-to-first edge, e.g. the bottom)."""
@@ -372,45 +381,45 @@ _JERSEY = np.array([[0.0, -0.05], [0.0, 0.075], [0.18, 0.33], [0.23, 0.81], [0.3
 _JERSEY_AT_D = 0.2
 
 
-def _rail(ground: Ground, lay: _Layout, rng: np.random.Generator, side: int, kind: str,
-          d0: float, facing_out: bool = False) -> list[_Batch]:
+def rail_batches(ground: Ground, lay: Layout, rng: np.random.Generator, side: int, kind: str,
+          d0: float, facing_out: bool = False) -> list[Batch]:
     """A W-beam along the whole road on ``side``, its face ``d0`` beyond the band (facing the road,
     or away from it with ``facing_out``), with posts every 4 m behind it."""
-    xs = _stations(ground, lay.x0, lay.x1)
+    xs = stations(ground, lay.x0, lay.x1)
     d = _W_BEAM[:, 0] if not facing_out else (sum(_RAIL_POST_D) - _W_BEAM[:, 0])   # mirrored about the posts
     yl = lay.yl(np.full(len(d), side), d + d0 - 0.25)
-    verts, faces = _sweep(ground, xs, np.stack([yl, _W_BEAM[:, 1]], -1), closed=True)
+    verts, faces = sweep(ground, xs, np.stack([yl, _W_BEAM[:, 1]], -1), closed=True)
     n = len(verts)
-    grey = _albedo(rng, (165, 168, 170), (12, 12, 12), 1, 1)[0, 0]
+    grey = albedo_draw(rng, (165, 168, 170), (12, 12, 12), 1, 1)[0, 0]
     alb = np.broadcast_to(grey * (1 + rng.uniform(-0.05, 0.05, (n, 1, 1))), (n, len(faces), 3))
-    out = [_Batch(verts, faces, alb, kind)]
+    out = [Batch(verts, faces, alb, kind)]
     px = np.arange(lay.x0 + rng.uniform(0, 4), lay.x1, 4.0)
     dc = d0 - 0.25 + sum(_RAIL_POST_D) / 2
     pv, pf = boxes(np.tile([[0.0, 0.0, 0.2]], (len(px), 1)), np.tile([[0.15, _RAIL_POST_D[1] - _RAIL_POST_D[0], 1.0]],
                                                                    (len(px), 1)))
     pv = ground.place(pv, px, lay.yl(np.full(len(px), side), np.full(len(px), dc)))
-    out.append(_Batch(pv, pf, _albedo(rng, (120, 122, 125), (10, 10, 10), len(px), len(pf)), kind))
+    out.append(Batch(pv, pf, albedo_draw(rng, (120, 122, 125), (10, 10, 10), len(px), len(pf)), kind))
     return out
 
 
-def _median(ground: Ground, lay: _Layout, rng: np.random.Generator, kind: str) -> list[_Batch]:
+def median_batches(ground: Ground, lay: Layout, rng: np.random.Generator, kind: str) -> list[Batch]:
     """The barrier on the left edge, just beyond the left shoulder's clearance."""
     if kind == "none":
         return []
     if kind == "rail":   # two beams back to back on one row of posts
-        return _rail(ground, lay, rng, +1, "median", 0.25) + _rail(ground, lay, rng, +1, "median", 0.25, True)[:1]
+        return rail_batches(ground, lay, rng, +1, "median", 0.25) + rail_batches(ground, lay, rng, +1, "median", 0.25, True)[:1]
     if kind not in ("concrete", "concrete_low"):
         raise ValueError(f"median: unknown kind {kind!r}")
     sec = _JERSEY.copy()
     if kind == "concrete_low":
         sec[:, 1] *= 0.5 / 0.81
-    xs = _stations(ground, lay.x0, lay.x1)
+    xs = stations(ground, lay.x0, lay.x1)
     yl = lay.yl(np.full(len(sec), 1), sec[:, 0] + _JERSEY_AT_D)
-    verts, faces = _sweep(ground, xs, np.stack([yl, sec[:, 1]], -1), closed=False)
+    verts, faces = sweep(ground, xs, np.stack([yl, sec[:, 1]], -1), closed=False)
     n = len(verts)
-    tone = _albedo(rng, (188, 186, 180), (14, 14, 14), 1, 1)[0, 0]
+    tone = albedo_draw(rng, (188, 186, 180), (14, 14, 14), 1, 1)[0, 0]
     alb = np.broadcast_to(tone * (1 + rng.uniform(-0.06, 0.06, (n, 1, 1))), (n, len(faces), 3))
-    return [_Batch(verts, faces, alb, "median")]
+    return [Batch(verts, faces, alb, "median")]
 
 
 _FOLIAGE = {"broadleaf": ((62, 92, 40), (14, 18, 10)), "conifer": ((38, 62, 40), (8, 12, 8)),
@@ -418,14 +427,14 @@ _FOLIAGE = {"broadleaf": ((62, 92, 40), (14, 18, 10)), "conifer": ((38, 62, 40),
 _BARK = ((92, 78, 62), (16, 14, 12))
 
 
-def _both_sides(rng: np.random.Generator, lay: _Layout, density: float, *spacing: float) -> tuple[np.ndarray, np.ndarray]:
+def _both_sides(rng: np.random.Generator, lay: Layout, density: float, *spacing: float) -> tuple[np.ndarray, np.ndarray]:
     """Stations ``x`` along the road (``_xs_along``) on the left (+1) then the right (-1) side, and each one's side."""
     xs = [_xs_along(rng, lay, density, *spacing) for _ in (+1, -1)]
     return np.concatenate(xs), np.concatenate([np.full(len(x), side) for x, side in zip(xs, (+1, -1))])
 
 
-def _trees(ground: Ground, lay: _Layout, rng: np.random.Generator, look: RoadsideLook,
-           right_min_d: float) -> list[_Batch]:
+def tree_batches(ground: Ground, lay: Layout, rng: np.random.Generator, look: RoadsideLook,
+           right_min_d: float) -> list[Batch]:
     """Trees of ``look.tree_form`` on both sides, ``tree_setback_m`` and more beyond the edge lines."""
     form = look.tree_form
     if form not in _FOLIAGE:
@@ -465,7 +474,7 @@ def _trees(ground: Ground, lay: _Layout, rng: np.random.Generator, look: Roadsid
     out = []
 
     def add(verts, faces, base, spread, jitter, kind="tree"):
-        out.append(_Batch(ground.place(verts, x, yl), faces, _albedo(rng, base, spread, n, len(faces), jitter),
+        out.append(Batch(ground.place(verts, x, yl), faces, albedo_draw(rng, base, spread, n, len(faces), jitter),
                           kind))
 
     if form == "conifer":
@@ -479,8 +488,8 @@ def _trees(ground: Ground, lay: _Layout, rng: np.random.Generator, look: Roadsid
         for lo, hi, r in ((0.0, 0.55, 1.0), (0.3, 0.8, 0.72), (0.55, 1.0, 0.45)):
             v, f = frustums(np.stack([zero, zero, h0 + lo * (height - h0)], -1),
                             np.stack([zero, zero, h0 + hi * (height - h0)], -1), rc * r, zero, 8, bottom=True)
-            alb = _albedo(rng, base, spread, n, len(f), 0.06) * tint[:, :, None]
-            out.append(_Batch(ground.place(v, x, yl), f, alb, "tree"))
+            alb = albedo_draw(rng, base, spread, n, len(f), 0.06) * tint[:, :, None]
+            out.append(Batch(ground.place(v, x, yl), f, alb, "tree"))
         return out
 
     base, spread = _FOLIAGE[form]
@@ -522,13 +531,13 @@ def _trees(ground: Ground, lay: _Layout, rng: np.random.Generator, look: Roadsid
     tint = rng.uniform(0.8, 1.15, (n, 1, 1))
     for k in range(lump_c.shape[1]):
         v, f = blobs(rng, lump_c[:, k], lump_r[:, k], 1, 0.16)
-        alb = _albedo(rng, base, spread, n, len(f), 0.07) * tint
-        out.append(_Batch(ground.place(v, x, yl), f, alb, "tree"))
+        alb = albedo_draw(rng, base, spread, n, len(f), 0.07) * tint
+        out.append(Batch(ground.place(v, x, yl), f, alb, "tree"))
     return out
 
 
-def _bushes(ground: Ground, lay: _Layout, rng: np.random.Generator, look: RoadsideLook,
-            right_min_d: float) -> list[_Batch]:
+def bush_batches(ground: Ground, lay: Layout, rng: np.random.Generator, look: RoadsideLook,
+            right_min_d: float) -> list[Batch]:
     x, side = _both_sides(rng, lay, look.bush_density, 2.5, 4.0)
     n = len(x)
     if n == 0:
@@ -546,12 +555,12 @@ def _bushes(ground: Ground, lay: _Layout, rng: np.random.Generator, look: Roadsi
         c = off + np.stack([np.zeros(n), np.zeros(n), 0.45 * r], -1)
         rad = r[:, None] * rng.uniform(0.7, 1.0, (n, 1)) * [1.0, 1.0, 0.75]
         v, f = blobs(rng, c, rad, 0, 0.18)
-        out.append(_Batch(ground.place(v, x, yl), f, _albedo(rng, (60, 82, 38), (14, 16, 10), n, len(f), 0.08),
+        out.append(Batch(ground.place(v, x, yl), f, albedo_draw(rng, (60, 82, 38), (14, 16, 10), n, len(f), 0.08),
                           "bush"))
     return out
 
 
-def _poles(ground: Ground, lay: _Layout, rng: np.random.Generator, spacing: float) -> list[_Batch]:
+def pole_batches(ground: Ground, lay: Layout, rng: np.random.Generator, spacing: float) -> list[Batch]:
     """Lighting poles every ``spacing`` m on one or both verges, each arm reaching towards the road."""
     if spacing <= 0:
         return []
@@ -573,32 +582,32 @@ def _poles(ground: Ground, lay: _Layout, rng: np.random.Generator, spacing: floa
     out = []
     v, f = frustums(np.stack([zero, zero, zero - 0.3], -1), np.stack([zero, zero, zero + height], -1),
                     one * 0.12, one * 0.07, 8)
-    out.append(_Batch(ground.place(v, x, yl), f, _albedo(rng, *grey, n, len(f)), "pole"))
+    out.append(Batch(ground.place(v, x, yl), f, albedo_draw(rng, *grey, n, len(f)), "pole"))
     v, f = boxes(np.stack([zero, towards * arm / 2, zero + height - 0.15], -1), np.tile([[0.08, arm, 0.08]], (n, 1)),
                  bottom=True)
-    out.append(_Batch(ground.place(v, x, yl), f, _albedo(rng, *grey, n, len(f)), "pole"))
+    out.append(Batch(ground.place(v, x, yl), f, albedo_draw(rng, *grey, n, len(f)), "pole"))
     v, f = boxes(np.stack([zero, towards * (arm - 0.3), zero + height - 0.25], -1),
                  np.tile([[0.3, 0.6, 0.14]], (n, 1)), bottom=True)
-    out.append(_Batch(ground.place(v, x, yl), f, _albedo(rng, (95, 97, 100), (8, 8, 8), n, len(f)), "pole"))
+    out.append(Batch(ground.place(v, x, yl), f, albedo_draw(rng, (95, 97, 100), (8, 8, 8), n, len(f)), "pole"))
     return out
 
 
 _SIGN_COLOURS = np.array([[28, 72, 150], [24, 105, 62], [235, 235, 230], [230, 190, 40]], float)
 
 
-def _plates(rng, n: int, f: np.ndarray, verts: np.ndarray, front: np.ndarray) -> np.ndarray:
+def plate_faces(rng, n: int, f: np.ndarray, verts: np.ndarray, front: np.ndarray) -> np.ndarray:
     """Albedo of thin plates: the face whose normal points along -a (towards oncoming traffic) in
     the plate colour ``front`` (n, 3), the rest galvanised grey."""
     t = verts[0][f]
     normal = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
     is_front = normal[:, 0] < -0.5 * np.linalg.norm(normal, axis=1)
-    alb = _albedo(rng, (150, 150, 150), (10, 10, 10), n, len(f))
+    alb = albedo_draw(rng, (150, 150, 150), (10, 10, 10), n, len(f))
     alb[:, is_front] = front[:, None, :]
     return alb
 
 
-def _signs(ground: Ground, lay: _Layout, rng: np.random.Generator, density: float,
-           right_min_d: float) -> list[_Batch]:
+def sign_batches(ground: Ground, lay: Layout, rng: np.random.Generator, density: float,
+           right_min_d: float) -> list[Batch]:
     """Signs facing oncoming traffic: large direction boards on two posts, small plates on one."""
     xs, sides = [], []
     for side in (+1, -1):
@@ -623,18 +632,18 @@ def _signs(ground: Ground, lay: _Layout, rng: np.random.Generator, density: floa
         yl = lay.yl(sb, near + w / 2)                  # the plate's centre: its road-side edge `near` out
         colour = _SIGN_COLOURS[rng.integers(0, 2, n)] if is_big else _SIGN_COLOURS[rng.integers(0, 4, n)]
         v, f = boxes(np.stack([zero, zero, bottom + h / 2], -1), np.stack([zero + 0.06, w, h], -1), bottom=True)
-        out.append(_Batch(ground.place(v, xb, yl), f, _plates(rng, n, f, v, colour), "sign"))
+        out.append(Batch(ground.place(v, xb, yl), f, plate_faces(rng, n, f, v, colour), "sign"))
         offsets = (-(w / 2 - 0.35), w / 2 - 0.35) if is_big else (zero,)
         for off in offsets:
             v, f = boxes(np.stack([zero + 0.1, off, (bottom + h - 0.1 - 0.4) / 2], -1),
                          np.stack([zero + 0.1, zero + 0.1, bottom + h - 0.1 + 0.4], -1))
-            out.append(_Batch(ground.place(v, xb, yl), f, _albedo(rng, (140, 142, 145), (8, 8, 8), n, len(f)),
+            out.append(Batch(ground.place(v, xb, yl), f, albedo_draw(rng, (140, 142, 145), (8, 8, 8), n, len(f)),
                               "sign"))
     return out
 
 
-def _gantries(ground: Ground, lay: _Layout, rng: np.random.Generator, spacing: float, n_lanes: int,
-              lane_width: float) -> list[_Batch]:
+def gantry_batches(ground: Ground, lay: Layout, rng: np.random.Generator, spacing: float, n_lanes: int,
+              lane_width: float) -> list[Batch]:
     """Gantries every ``spacing`` m: legs 1.5 m beyond the band, a beam 6.2-7.4 m up carrying
     direction plates (bottoms >= 5.7 m) over the lanes, facing oncoming traffic."""
     if spacing <= 0:
@@ -649,10 +658,10 @@ def _gantries(ground: Ground, lay: _Layout, rng: np.random.Generator, spacing: f
     grey = (140, 142, 146), (10, 10, 10)
     for yl_leg in (yl_l, yl_r):
         v, f = boxes(np.stack([zero, zero + yl_leg, zero + 3.6], -1), np.tile([[0.45, 0.45, 8.2]], (n, 1)))
-        out.append(_Batch(ground.place(v, x, zero), f, _albedo(rng, *grey, n, len(f)), "gantry"))
+        out.append(Batch(ground.place(v, x, zero), f, albedo_draw(rng, *grey, n, len(f)), "gantry"))
     v, f = boxes(np.stack([zero, zero + (yl_l + yl_r) / 2, zero + 6.8], -1),
                  np.tile([[0.8, yl_l - yl_r + 0.45, 1.2]], (n, 1)), bottom=True)
-    out.append(_Batch(ground.place(v, x, zero), f, _albedo(rng, *grey, n, len(f)), "gantry"))
+    out.append(Batch(ground.place(v, x, zero), f, albedo_draw(rng, *grey, n, len(f)), "gantry"))
     n_plates = max(1, min(3, n_lanes - 1))
     for k in range(n_plates):
         lane = (k + 0.5) * n_lanes / n_plates - 0.5
@@ -660,12 +669,12 @@ def _gantries(ground: Ground, lay: _Layout, rng: np.random.Generator, spacing: f
         v, f = boxes(np.stack([zero - 0.45, zero - lane * lane_width, zero + 5.7 + 1.0], -1),
                      np.tile([[0.06, width, 2.0]], (n, 1)), bottom=True)
         colour = _SIGN_COLOURS[rng.integers(0, 2, n)]
-        out.append(_Batch(ground.place(v, x, zero), f, _plates(rng, n, f, v, colour), "gantry"))
+        out.append(Batch(ground.place(v, x, zero), f, plate_faces(rng, n, f, v, colour), "gantry"))
     return out
 
 
 # --------------------------------------------------------------------------- far: buildings and hills
-def _centre_line(ground: Ground, road: Road, lay: _Layout, step: float = 20.0) -> tuple[np.ndarray, np.ndarray]:
+def _centre_line(ground: Ground, road: Road, lay: Layout, step: float = 20.0) -> tuple[np.ndarray, np.ndarray]:
     """Road x and W points (N, 3) of the carriageway's middle, ``step`` m apart."""
     x = np.linspace(lay.x0, lay.x1, int(math.ceil((lay.x1 - lay.x0) / step)) + 1)
     mid = -(road.lanes - 1) / 2 * road.lane_width_m
@@ -676,7 +685,7 @@ _WALLS = np.array([[226, 220, 205], [200, 190, 170], [160, 92, 70], [178, 178, 1
 _ROOFS = np.array([[150, 60, 45], [110, 55, 45], [80, 80, 85], [120, 110, 100]], float)
 
 
-def _buildings(ground: Ground, road: Road, lay: _Layout, rng: np.random.Generator, density: float) -> list[_Batch]:
+def building_batches(ground: Ground, road: Road, lay: Layout, rng: np.random.Generator, density: float) -> list[Batch]:
     """Houses and sheds in hamlets 150-800 m from the road: boxes with gable roofs."""
     cx, line = _centre_line(ground, road, lay)
     half_road = (lay.edge_left - lay.edge_right) / 2
@@ -726,11 +735,11 @@ def _buildings(ground: Ground, road: Road, lay: _Layout, rng: np.random.Generato
     roof_c = _ROOFS[rng.integers(0, len(_ROOFS), n)]
     wall_alb = np.repeat(wall_c[:, None], len(bf), 1) * rng.uniform(0.9, 1.1, (n, 1, 1))
     roof_alb = np.repeat(roof_c[:, None], len(rf), 1) * rng.uniform(0.9, 1.1, (n, 1, 1))
-    return [_Batch(turn(bv), bf, wall_alb, "building"), _Batch(turn(rv), rf, roof_alb, "building")]
+    return [Batch(turn(bv), bf, wall_alb, "building"), Batch(turn(rv), rf, roof_alb, "building")]
 
 
-def _hills(ground: Ground, road: Road, lay: _Layout, rng: np.random.Generator, height: float,
-           n_azimuth: int = 360) -> list[_Batch]:
+def hill_batches(ground: Ground, road: Road, lay: Layout, rng: np.random.Generator, height: float,
+           n_azimuth: int = 360) -> list[Batch]:
     """A ring of hills around the road: its inner slope rises from 3 m under the ground at half the
     ridge distance to a ridge of ``height`` m (smooth, random along the ring) at distance D from
     the road, D = clip(5500 m - length - 300 m, 2000, 3500)."""
@@ -776,13 +785,13 @@ def _hills(ground: Ground, road: Road, lay: _Layout, rng: np.random.Generator, h
     up = np.cross(t[..., 1, :] - t[..., 0, :], t[..., 2, :] - t[..., 0, :])[..., 2]
     if np.mean(up) < 0:                                                # face up and inwards (towards the road)
         faces = faces[:, ::-1]
-    green = _albedo(rng, (88, 112, 78), (10, 10, 8), 1, 1)[0, 0]
+    green = albedo_draw(rng, (88, 112, 78), (10, 10, 8), 1, 1)[0, 0]
     blue = np.array([120.0, 135.0, 140.0])
     mix = np.linspace(0.2, 0.75, len(rows) - 1)[:, None, None]
     alb = (1 - mix) * green + mix * blue
     alb = np.broadcast_to(alb, (len(rows) - 1, len(faces), 3)) * (1 + rng.uniform(-0.05, 0.05, (len(rows) - 1,
                                                                                                len(faces), 1)))
-    return [_Batch(verts, faces, alb, "hill")]
+    return [Batch(verts, faces, alb, "hill")]
 
 
 # --------------------------------------------------------------------------- shadows
@@ -885,35 +894,3 @@ def _subdivide(ground: Ground, tris: np.ndarray, lift: np.ndarray, x_near: np.nd
                                                       (xab, xbc, xca))])
         lift = np.tile(lift[big], 4)
     return np.concatenate(out_t), np.concatenate(out_l), np.concatenate(out_x)
-
-
-# --------------------------------------------------------------------------- the whole
-def roadside_geometry(road: Road, profile: RoadProfile | None, plan: RoadPlan | None, look: RoadsideLook,
-                      sun_w: np.ndarray) -> RoadsideGeometry:
-    """Everything beside ``road`` for ``look``, following ``profile`` and ``plan`` (None: level,
-    straight), with the shadows of the occluders for light travelling along ``sun_w`` (unit, W)."""
-    ground = Ground(profile, plan, (-MARGIN_M, road.length_m + MARGIN_M))
-    band_lo, band_hi = clear_band(road)
-    max_offset = 120.0 if plan is None else min(120.0, 0.5 * plan.min_radius() - 1.0)
-    lay = _Layout(-MARGIN_M, road.length_m + MARGIN_M, -band_lo, -band_hi,
-                  road.shoulder_width_m + CLEAR_MARGIN_M, max(max_offset, 5.0))
-
-    def gen(tag: int) -> np.random.Generator:
-        return np.random.default_rng([int(look.layout_seed) & 0xFFFFFFFF, 0x5EED, tag])
-
-    occ: list[_Batch] = []
-    right_min_d = 0.2
-    if look.guard_rail:
-        occ += _rail(ground, lay, gen(1), -1, "rail", 0.25)
-        right_min_d = 1.0
-    occ += _median(ground, lay, gen(2), look.median)
-    occ += _trees(ground, lay, gen(3), look, right_min_d + 0.5)
-    occ += _bushes(ground, lay, gen(4), look, right_min_d + 0.3)
-    occ += _poles(ground, lay, gen(5), look.pole_spacing_m)
-    occ += _signs(ground, lay, gen(6), look.sign_density, right_min_d)
-    occ += _gantries(ground, lay, gen(7), look.gantry_spacing_m, road.lanes, road.lane_width_m)
-    far = _buildings(ground, road, lay, gen(8), look.building_density) + _hills(ground, road, lay, gen(9),
-                                                                                 look.hill_height_m)
-    parts = [v for b in occ for v in b.verts]
-    shadows = ground_shadows(parts, sun_w, ground)
-    return RoadsideGeometry(_faces(occ), _faces(far), shadows)

@@ -14,6 +14,8 @@ sampled at v = 1 and row H - 1 at v = 0, column 0 at u = 0. A pixel covers about
 - ``marking``: white paint with speckled wear showing grey asphalt through it.
 - ``shoulder``: coarse, gravelly asphalt with loose stones.
 - ``grass``: the verge, patchy with dry (straw) and dark spots.
+- ``pavement`` (a street's only, :func:`pavement_texture`): square paving slabs with dark joints, each
+  slab's tone a little different, fine grain and grime.
 
 Colour convention: the TEXTURES CARRY THE ALBEDO. Each texture's mean is its look colour
 (``asphalt_srgb``, ``shoulder_srgb``, ``grass_srgb``; the marking's mean is worn paint) and the
@@ -44,7 +46,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 
-from harness.render.look import SurfaceLook  # noqa: E402
+from harness.render.look import StreetLook, SurfaceLook  # noqa: E402
 from harness.render.road import SURFACE_COLORS, Tiling  # noqa: E402
 
 #: Texture sizes (rows across v, columns along u).
@@ -56,7 +58,8 @@ ASPHALT_TILE_M = 16.0
 WHEEL_TRACK_M = 0.85          # wheel-track centres from the lane centre
 WHEEL_TRACK_SIGMA_M = 0.28
 PAINT_SRGB = SURFACE_COLORS["marking"]
-_KINDS = {"asphalt": 1, "marking": 2, "shoulder": 3, "grass": 4}
+PAVEMENT_SHAPE = (256, 512)
+_KINDS = {"asphalt": 1, "marking": 2, "shoulder": 3, "grass": 4, "pavement": 5}
 
 
 # ---------------------------------------------------------------------------- noise
@@ -258,6 +261,25 @@ def grass_texture(surface: SurfaceLook, tile_m: tuple[float, float] = Tiling.gra
     tint = (1 - dry_w)[..., None] * np.ones(3, np.float32) + dry_w[..., None] * straw
     tint = tint * _tint(rng, shape, size, 0.03)
     return _to_srgb8(value, tint, surface.grass_srgb)
+
+
+def pavement_texture(surface: SurfaceLook, street: StreetLook,
+                     tile_m: tuple[float, float] = Tiling.pavement_m) -> np.ndarray:
+    """Paving slabs of about ``street.slab_m`` (a whole number per tile) with 1-2 cm dark joints, a tone
+    per slab, grain and grime: (256, 512, 3) uint8 over ``tile_m`` (along, across; m), mean
+    ``street.pavement_srgb``."""
+    shape, size = PAVEMENT_SHAPE, (tile_m[1], tile_m[0])
+    rng = _rng(surface, "pavement")
+    y, x = _grid(shape, size)
+    ny, nx = (max(1, round(s / street.slab_m)) for s in size)
+    sy, sx = size[0] / ny, size[1] / nx
+    slab = rng.uniform(-1, 1, (ny, nx)).astype(np.float32)
+    tone = slab[np.minimum((y / sy).astype(int), ny - 1), np.minimum((x / sx).astype(int), nx - 1)]
+    joint = np.minimum(np.abs(_wrap(y, sy)), np.abs(_wrap(x, sx)))      # m to the nearest joint
+    grain = _grain(rng, shape, size, 0.01)
+    grime = _fbm(rng, shape, size, (0.3, 0.6, 1.2), (0.6, 0.8, 1.0))
+    value = (1 + 0.05 * tone + 0.06 * grime) * (1 + 0.12 * grain) * (1 - 0.45 * np.exp(-0.5 * (joint / 0.006) ** 2))
+    return _to_srgb8(value, _tint(rng, shape, size, 0.02), street.pavement_srgb)
 
 
 def road_textures(surface: SurfaceLook, lane_width_m: float) -> dict[str, np.ndarray]:

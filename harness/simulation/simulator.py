@@ -2,8 +2,9 @@
 
 ``Simulation(scenario)`` builds the road (:mod:`.road`), the ego (id 0), the
 placed vehicles (ids 1..P in file order) and the random traffic (ids P+1..N in
-placement order) — deterministically for ``scenario.seed``. With ``traffic.fleet: mixed`` each random
-vehicle's body type and footprint come from :func:`harness.world.fleet.draw_body` (its own generator: the
+placement order) — deterministically for ``scenario.seed`` — and, on a street (``road.street``),
+the parked cars near the ego (:mod:`.parking`: static, not highway-env's, ids from 100,000). With
+``traffic.fleet: mixed`` each random vehicle's body type and footprint come from :func:`harness.world.fleet.draw_body` (its own generator: the
 seed and its id, so the placement's stream is the same draws), and a placed vehicle with a ``body`` but no
 size gets the type's typical one; highway-env's ``LENGTH``/``WIDTH`` are set to the footprint. With ``traffic.warmup_s``
 the world first runs that long (frames ``-W .. -1``, not shown), so frame 0 is the traffic
@@ -22,6 +23,7 @@ import numpy as np
 from harness.world import scenario as sc
 from harness.world.scenario import ScenarioError
 from harness.simulation.events import timed_events
+from harness.simulation.parking import ParkedCars
 from harness.simulation.placement import (ROAD_START_MARGIN_M, Footprint, cut_in_distance, fleet_sizes,
                                           placed_centre_x, placed_size, traffic_slots)
 from harness.world.road import EGO_START_X_M, road_plan, road_profile
@@ -62,6 +64,7 @@ class Simulation:
         ego_x = float(self.ego.position[0])
         self.profile = road_profile(scenario.road.profile, scenario.camera.forward_offset_m, ego_x)
         self.plan = road_plan(scenario.road.curves, scenario.camera.forward_offset_m, ego_x)
+        self.parked = ParkedCars(scenario.road, scenario.seed)
 
     # ---------------------------------------------------------------- public
     @property
@@ -70,9 +73,10 @@ class Simulation:
 
     def state(self) -> WorldState:
         """The current frame's exact state (frame 0 = initial placement at t = 0)."""
-        return WorldState(frame=self._clock.frame, t=self._clock.t, ego=vehicle_state(self.ego),
-                          vehicles=tuple(vehicle_state(v) for v in self._others), profile=self.profile,
-                          plan=self.plan)
+        ego = vehicle_state(self.ego)
+        return WorldState(frame=self._clock.frame, t=self._clock.t, ego=ego,
+                          vehicles=(*(vehicle_state(v) for v in self._others), *self.parked.near(ego.x)),
+                          profile=self.profile, plan=self.plan)
 
     def step(self) -> WorldState:
         """Advance exactly one frame (``road.act(); road.step(dt)``) and return the new state."""

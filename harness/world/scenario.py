@@ -79,6 +79,23 @@ class Curve(_Model):
         return (1 if self.direction == "right" else -1) * (self.transition_m + self.length_m) / self.radius_m
 
 
+#: The narrowest parking strip (m): the widest parked body (a van, 2.07 m, and its mirrors) and a margin.
+MIN_PARKING_STRIP_M = 2.3
+
+
+class Street(_Model):
+    """An urban street (:mod:`harness.simulation.parking`, :mod:`harness.render.street`): the shoulders are
+    parking strips (asphalt, ``road.shoulder_width_m`` wide beyond the outer edge lines) ending at a kerb,
+    a pavement beyond it, then the frontage (houses, walls, hedges, fences) of the realistic look."""
+
+    parking: Literal["none", "right", "both"] = Field("both", description="which parking strips hold parked cars")
+    parked_per_100m: float = Field(10.0, ge=0, le=18, description="parked cars per 100 m of each strip")
+    facing_traffic_share: float = Field(0.85, ge=0, le=1, description=(
+        "share of parked cars facing their side's direction of travel (right: along +x, left: against it); "
+        "the others face the other way (their fronts towards the camera on the right)"))
+    pavement_m: float = Field(2.5, ge=0.5, le=8.0, description="width of each pavement beyond the kerb, m")
+
+
 class Road(_Model):
     lanes: int = Field(3, ge=1, le=8)
     lane_width_m: float = Field(4.0, ge=2.5, le=6.0)
@@ -88,6 +105,9 @@ class Road(_Model):
     markings: Markings = Markings()
     profile: list[GradeChange] = Field([], description="vertical profile: grade changes in order; empty: level")
     curves: list[Curve] = Field([], description="horizontal curves in order; empty: straight")
+    street: Street | None = Field(None, description=(
+        "an urban street: parked cars on the shoulders (parking strips), kerbs, pavements, frontages; "
+        "null: a motorway (hard shoulders, verges, roadside furniture)"))
 
     @model_validator(mode="after")
     def _ordered(self) -> "Road":
@@ -107,6 +127,14 @@ class Road(_Model):
                                  f"start (at most {math.degrees(MAX_TURN_RAD):.0f})")
         return self
 
+    @model_validator(mode="after")
+    def _parking_room(self) -> "Road":
+        if self.street is not None and self.street.parking != "none" and self.shoulder_width_m < MIN_PARKING_STRIP_M:
+            raise ValueError(f"shoulder_width_m: {self.shoulder_width_m} m is too narrow a parking strip for "
+                             f"street.parking {self.street.parking!r} (at least {MIN_PARKING_STRIP_M} m: the widest "
+                             "parked van with its mirrors)")
+        return self
+
     @model_serializer(mode="wrap")
     def _dump(self, handler):
         data = handler(self)
@@ -114,6 +142,8 @@ class Road(_Model):
             data.pop("profile", None)
         if not self.curves:    # so does a straight one
             data.pop("curves", None)
+        if self.street is None:   # and a motorway
+            data.pop("street", None)
         return data
 
 

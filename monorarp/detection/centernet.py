@@ -29,6 +29,7 @@ DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "centernet_v
 ROBUST_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_robust.onnx")
 DENSE_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_dense.onnx")
 REALISTIC_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_realistic.onnx")
+STREET_MODEL = DEFAULT_MODEL.with_name("centernet_vehicle_street.onnx")
 OUTPUT_NAMES = ("heatmap", "ltrb")
 
 
@@ -276,3 +277,13 @@ class RealisticCenterNetDetector(CenterNetDetector):
     def __init__(self, model_path: str | Path | None = None, camera: CameraModel | dict | None = None,
                  **kw) -> None:
         super().__init__(REALISTIC_MODEL if model_path is None else model_path, camera=camera, **kw)
+
+
+class StreetCenterNetDetector(CenterNetDetector):
+    """:class:`CenterNetDetector` with ``centernet_vehicle_street.onnx``: the realistic model fine-tuned on
+    realistic renders of motorways and urban streets (registered as ``centernet_street``; training and
+    figures: docs/looks.md)."""
+
+    def __init__(self, model_path: str | Path | None = None, camera: CameraModel | dict | None = None,
+                 **kw) -> None:
+        super().__init__(STREET_MODEL if model_path is None else model_path, camera=camera, **kw)

@@ -13,6 +13,7 @@ BUILTINS: dict[str, dict[str, str]] = {
         "centernet_robust": "monorarp.detection.centernet:RobustCenterNetDetector",
         "centernet_dense": "monorarp.detection.centernet:DenseCenterNetDetector",
         "centernet_realistic": "monorarp.detection.centernet:RealisticCenterNetDetector",
+        "centernet_street": "monorarp.detection.centernet:StreetCenterNetDetector",
         "yolo": "monorarp.detection.yolo:YoloDetector",
         "yolox": "monorarp.detection.yolox:YoloxDetector",
     },

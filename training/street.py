@@ -1,0 +1,73 @@
+"""The variant that has also seen urban streets: ``centernet_vehicle_street`` (detector ``centernet_street``).
+
+Same net and loss as the shipped model, trained from scratch (``EPOCHS`` epochs, one cosine cycle); its data
+differ:
+
+* data: the realistic model's motorway shards (:data:`training.realistic.SHARDS`) plus ``SHARDS``: urban
+  streets (``generate_data --street 1``: 1-2 narrow lanes, parked cars along both kerbs, kerbs, pavements, the
+  street frontage of houses, walls, hedges and fences; :mod:`harness.simulation.parking`,
+  :mod:`harness.render.street`), the realistic look of the *training* family, a mixed fleet;
+* validation (what chooses the score threshold): the realistic model's held-out motorway renders and
+  ``VAL``, streets of the *held-out* family, together. No real image is in its training, none chooses a
+  checkpoint or threshold: the KITTI figures in docs/looks.md are measured after the fact.
+
+    python -m training.reproduce --variant street
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from monorarp.detection.centernet import STREET_MODEL
+from training import generate_data, realistic
+
+SHARDS = ((12, 200, False), (13, 120, True))   # (seed, scenarios, fovea); 10 frames each, all streets
+VAL = (100012, 40, 8)                           # seed, scenarios, frames; 640x360 and 1242x375; held-out family
+EPOCHS, BATCH, LR, SEED = 12, 16, 3e-3, 6
+OUT = STREET_MODEL
+VAL_NOTE = (f"{VAL[1]} street scenarios (seed {VAL[0]}), {VAL[2]} frames each, 640x360 and 1242x375, realistic "
+            "look of the held-out family, mixed fleet, parked cars; required boxes: visibility >= 0.3 and >= 3 px "
+            "at 320x192 (others ignored)")
+
+
+def val_dir(d: Path) -> Path:
+    return d / "val_street"
+
+
+def make_data(d: Path, force: bool) -> list[Path]:
+    """Render the street shards and the held-out street set (and the realistic model's data); return all
+    training shards."""
+    shards = realistic.make_data(d, force)
+    for seed, n, fovea in SHARDS:
+        out = d / f"street{seed}{'f' if fovea else ''}"
+        shards.append(out)
+        if force or not (out / "meta.json").exists():
+            generate_data.main(["--out", str(out), "--scenarios", str(n), "--seed", str(seed), "--look", "realistic",
+                                "--fleet", "mixed", "--street", "1", "--resolutions", realistic.RESOLUTIONS]
+                               + (["--fovea"] if fovea else []))
+    vs, vn, vf = VAL
+    if force or not (val_dir(d) / "meta.json").exists():
+        generate_data.main(["--out", str(val_dir(d)), "--scenarios", str(vn), "--seed", str(vs), "--frames", str(vf),
+                            "--look", "realistic", "--look-family", "heldout", "--fleet", "mixed", "--street", "1",
+                            "--resolutions", "640x360,1242x375"])
+    return shards
+
+
+def checkpoint(d: Path, force: bool) -> Path:
+    """Data, then training from scratch; return the checkpoint."""
+    return realistic.from_scratch(make_data(d, force), d / "centernet_street.pt", force, EPOCHS, BATCH, LR, SEED)
+
+
+def training_card() -> dict:
+    """The ``training`` block of the model's metadata."""
+    return {
+        "command": "python -m training.reproduce --variant street",
+        "init": "from scratch",
+        "data": f"the realistic model's {sum(n for _, n, _ in realistic.SHARDS)} motorway scenarios (seeds "
+                f"{[s for s, _, _ in realistic.SHARDS]}) and {sum(n for _, n, _ in SHARDS)} urban street scenarios "
+                f"(seeds {[s for s, _, _ in SHARDS]}: generate_data --street 1, parked cars, kerbs, pavements, "
+                "street frontage), 10 frames each, realistic look of the training family, mixed fleet, resolutions "
+                f"{realistic.RESOLUTIONS}; the seed-{realistic.SHARDS[1][0]} and seed-{SHARDS[1][0]} scenarios also "
+                "give each frame's fovea crop; no real image",
+        "epochs": EPOCHS, "batch": BATCH, "lr": LR, "seed": SEED, "loss": realistic.LOSS,
+    }
