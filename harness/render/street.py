@@ -26,8 +26,8 @@ import numpy as np
 
 from harness.render.look import ROOF_FORMS, StreetLook
 from harness.render.road import KERB_HEIGHT_M, KERB_WIDTH_M
-from harness.render.roadside import (Ground, albedo_draw, Batch, Layout, plate_faces, unit_sphere, stations, sweep, blobs,
-                                     boxes, frustums)
+from harness.render.roadside import (Batch, Ground, Layout, albedo_draw, blobs, boxes, frustums, plate_faces,
+                                     stations, sweep, unit_sphere)
 from harness.world.scenario import Road, Street
 
 OVERHEAD_M = 3.2
@@ -407,7 +407,7 @@ def _scattered(lay, rng, per_100m: float) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(xs), np.concatenate(sides)
 
 
-def sign_batches(out: _Out, lay, rng, look: StreetLook, front: float) -> None:
+def _signs(out: _Out, lay, rng, look: StreetLook, front: float) -> None:
     """Sign poles near the kerb, their plates facing the side's oncoming traffic; and street cabinets."""
     x, side = _scattered(lay, rng, look.sign_density)
     n = len(x)
@@ -450,5 +450,5 @@ def street_geometry(ground: Ground, road: Road, lay: Layout,
     _boundaries(out, lay, gen(4), look, x0, x1, side, house, front)
     _street_trees(out, lay, gen(5), look, road, front)
     _lamps(out, lay, gen(6), look, road)
-    sign_batches(out, lay, gen(7), look, front)
+    _signs(out, lay, gen(7), look, front)
     return out.batches, out.parts
