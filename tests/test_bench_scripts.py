@@ -83,7 +83,9 @@ def test_bench_real_prints_a_row_per_detector(tiny_kitti, tmp_path):
     assert list(rows) == ["labels", "centernet"]
     # the label boxes of an export are exact: AP 1 at both IoUs, every difficulty, precision and recall 1
     assert rows["labels"][1:4] == ["1.000/1.000/1.000", "1.000/1.000/1.000", "1.00/1.00"]
-    assert rows["labels"][4].endswith("%") and float(rows["labels"][4][:-1]) < 2.0     # distance 5-40 m
+    # distance 5-40 m: KITTI's label boxes (projected 3-D boxes) end below the tyres' contact line the estimator
+    # assumes, so even perfect boxes read a few % short (3.8 % median over 300 exported frames, 3.9 % on real KITTI)
+    assert rows["labels"][4].endswith("%") and 0.5 < float(rows["labels"][4][:-1]) < 10.0
     assert all(float(r[-2]) > 0 and float(r[-1]) > 0 for r in rows.values())         # frames/s, CPU ms
     assert "distance 5-40 m, label boxes" in out.stdout
     assert not any(tmp_path.iterdir())                                                # nothing left behind

@@ -105,7 +105,7 @@ def test_kitti_object_layout_and_label_fields(exported):
     assert sorted(p.name for p in root.iterdir()) == ["calib", "export.json", "image_2", "label_2"]
     for d, ext in (("image_2", ".png"), ("label_2", ".txt"), ("calib", ".txt")):
         assert sorted(p.name for p in (root / d).iterdir()) == [f"{k:06d}{ext}" for k in range(N_FRAMES)]
-    n_lines = 0
+    n_lines = n_hidden = 0
     for k, tr in enumerate(truth):
         img = cv2.imread(str(root / "image_2" / f"{k:06d}.png"))
         assert img.shape == (H, W, 3)
@@ -118,7 +118,15 @@ def test_kitti_object_layout_and_label_fields(exported):
             assert -math.pi <= lab["alpha"] <= math.pi and -math.pi <= lab["rotation_y"] <= math.pi
             x1, y1, x2, y2 = lab["bbox"]
             assert -0.5 <= x1 < x2 <= W - 0.5 and -0.5 <= y1 < y2 <= H - 0.5
-            assert lab["bbox"] == pytest.approx(obj.box, abs=0.005)
+            # KITTI's 2-D box: the cv2.projectPoints extent of the 3-D box, clipped to the image (an occluded
+            # vehicle's box covers its hidden part), holding every visible pixel.
+            uv, _ = cv2.projectPoints(np.array(obj.corners_cam, float), np.zeros(3), np.zeros(3), cam.K, None)
+            uv = uv.reshape(-1, 2)
+            want = np.r_[np.maximum(uv.min(0), -0.5), np.minimum(uv.max(0), [W - 0.5, H - 0.5])]
+            want = np.r_[np.minimum(want[:2], obj.box[:2]), np.maximum(want[2:], obj.box[2:])]
+            assert lab["bbox"] == pytest.approx(want, abs=0.005)
+            n_hidden += obj.visibility < 0.9 and (x2 - x1) * (y2 - y1) > 1.2 * (obj.box[2] - obj.box[0]) * (
+                obj.box[3] - obj.box[1])
             h, w, l = lab["dimensions"]
             assert (h, w, l) == pytest.approx((np.linalg.norm(np.subtract(obj.corners_cam[4], obj.corners_cam[0])),
                                                obj.width, obj.length), abs=1e-4)
@@ -130,7 +138,7 @@ def test_kitti_object_layout_and_label_fields(exported):
             assert math.isclose(math.remainder(a - lab["alpha"], 2 * math.pi), 0.0, abs_tol=2e-4)
             if obj.visibility >= 0.999:
                 assert lab["occluded"] == 0
-    assert n_lines > 3 * N_FRAMES
+    assert n_lines > 3 * N_FRAMES and n_hidden >= 1
     manifest = json.loads((root / "export.json").read_text())
     assert manifest["format"] == "kitti" and manifest["frames"] == N_FRAMES
 

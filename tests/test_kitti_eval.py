@@ -271,11 +271,17 @@ def test_round_trip_truth_and_perfect_scores(round_trip, fmt):
     rows = [r for r in csv.DictReader((round_trip[f"eval-{fmt}"] / "per_object.csv").open()) if r["gt_id"]]
     assert len(rows) == sum(len(t["objects"]) for t in truth)
     worst_long = worst_lat = 0.0
+    cam = CameraModel.load(round_trip["run"] / "camera.json")
+
+    def label_box(o: dict) -> np.ndarray:     # KITTI's 2-D box of a truth object (the export's convention)
+        ext = export_geo.projected_extent(np.array(o["corners_cam"], float)[None], cam)[0]
+        return export_geo.kitti_2d_box(ext, o["box"], cam.width, cam.height)
+
     for r in rows:
         objs = truth[int(r["frame"])]["objects"]
         box = np.array([float(r[k]) for k in ("gt_x1", "gt_y1", "gt_x2", "gt_y2")])
-        o = min(objs, key=lambda o: np.abs(np.array(o["box"]) - box).sum())
-        assert np.abs(np.array(o["box"]) - box).max() <= 0.005 + 1e-9
+        o = min(objs, key=lambda o: np.abs(label_box(o) - box).sum())
+        assert np.abs(label_box(o) - box).max() <= 0.005 + 1e-9
         worst_long = max(worst_long, abs(float(r["d_long_gt"]) - o["d_long"]))
         worst_lat = max(worst_lat, abs(float(r["d_lat_gt"]) - o["d_lat"]))
     # labels carry 4 decimals (m): every coordinate is within 5e-5 m, a corner within ~2e-4 m
@@ -286,7 +292,6 @@ def test_round_trip_truth_and_perfect_scores(round_trip, fmt):
             assert a["valid"] > 0 and a["ap_r40"] == 1.0 and a["ap_r11"] == 1.0 and a["fp"] == 0, (thr, d, a)
     assert m["detection"]["precision"] == 1.0 and m["detection"]["recall"] == 1.0
     assert m["dataset"]["camera"][0]["mounting_in_calibration"] is True
-    cam = CameraModel.load(round_trip["run"] / "camera.json")
     assert m["dataset"]["camera_model"]["pitch_rad"] == pytest.approx(cam.pitch_rad, abs=1e-9)
     assert (m["tracking"]["mota"] is None) == (fmt == "kitti")
 

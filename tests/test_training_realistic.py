@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import copy
+import json
 
 import numpy as np
 
@@ -108,3 +109,22 @@ def test_street_model_is_small_registered_and_finds_a_parked_car_in_a_street_ren
     assert len(near) >= 2 and {o.id >= 100_000 for o in near} == {True, False}   # the lead and a parked car
     for o in near:
         assert len(boxes) and iou(boxes, np.array(o.box, float)[None]).max() >= 0.6, o
+
+
+def test_amodal_labels_hold_the_visible_boxes_and_change_no_pixel(tmp_path):
+    """``generate_data --boxes amodal``: the same images and rows as the visible boxes; each box holds its
+    visible box, and the parked cars hidden behind one another get larger ones."""
+    from training.generate_data import generate
+
+    kw = dict(n_scenarios=1, seed=12, frames_per_scenario=2, frame_stride=20, resolutions=((640, 360),),
+              min_visibility=0.3, min_size=3.0, look="realistic", fleet="mixed", street=1.0)
+    generate(tmp_path / "vis", **kw)
+    generate(tmp_path / "amo", box_kind="amodal", **kw)
+    assert np.array_equal(np.load(tmp_path / "vis" / "images.npy"), np.load(tmp_path / "amo" / "images.npy"))
+    vis, amo = np.load(tmp_path / "vis" / "boxes.npy"), np.load(tmp_path / "amo" / "boxes.npy")
+    assert vis.shape == amo.shape and np.array_equal(vis[:, 0], amo[:, 0])
+    assert np.all(amo[:, 1:3] <= vis[:, 1:3] + 1e-9) and np.all(amo[:, 3:5] >= vis[:, 3:5] - 1e-9)
+    grown = (amo[:, 3] - amo[:, 1]) * (amo[:, 4] - amo[:, 2]) > 1.2 * (vis[:, 3] - vis[:, 1]) * (vis[:, 4] - vis[:, 2])
+    assert grown.sum() >= 3
+    assert json.loads((tmp_path / "amo" / "meta.json").read_text())["boxes"] == "amodal"
+    assert "boxes" not in json.loads((tmp_path / "vis" / "meta.json").read_text())

@@ -206,6 +206,21 @@ def visible_boxes(id_mask: np.ndarray, full_pixels: dict[int, float]) -> tuple[n
     return np.array(ids, int), np.array(boxes, float).reshape(-1, 4), np.array(vis, float)
 
 
+def amodal_in_view(ids: np.ndarray, boxes: np.ndarray, amodal: dict[int, np.ndarray], view: Fovea | None,
+                   src: tuple[int, int]) -> np.ndarray:
+    """The visible boxes ``boxes`` (view px) of vehicles ``ids`` replaced by their amodal boxes (image px) where
+    the renderer drew them alone, shifted into ``view`` (None: the whole ``src`` = (w, h) image) and clipped."""
+    x0, y0, w, h = (0, 0, *src) if view is None else (view.x0, view.y0, view.w, view.h)
+    out = boxes.copy()
+    for k, vid in enumerate(ids):
+        a = amodal.get(int(vid))
+        if a is None:
+            continue
+        a = np.array([max(a[0] - x0, -0.5), max(a[1] - y0, -0.5), min(a[2] - x0, w - 0.5), min(a[3] - y0, h - 0.5)])
+        out[k] = np.r_[np.minimum(a[:2], boxes[k, :2]), np.maximum(a[2:], boxes[k, 2:])]
+    return out
+
+
 def fovea_of(scen) -> Fovea | None:
     """The detector's second-pass crop for this scenario's camera (default fovea parameters)."""
     from monorarp.detection.centernet import CenterNetDetector
@@ -234,7 +249,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
              resolutions: tuple[tuple[int, int], ...], min_visibility: float, min_size: float,
              fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1,
              conditions: float = 0.0, styled: float = 0.0, family: str = "train", dense: float = 0.0,
-             look: str = "simple", look_family: str = "train", fleet: str = "none", street: float = 0.0) -> None:
+             look: str = "simple", look_family: str = "train", fleet: str = "none", street: float = 0.0,
+             box_kind: str = "visible") -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
     the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
@@ -250,13 +266,20 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
     ``look`` ``realistic`` renders every scenario with the realistic look of ``look_family`` (look seed from
     the scenario's own stream ``[seed, index, 0x100C]``). ``fleet`` ``mixed``: a mixed fleet in the traffic and
     the placed vehicles' bodies drawn from it (stream ``[seed, index, 0xF1EE]``). A fraction ``street`` is made
-    urban streets with parked cars (:func:`streetify`, stream ``[seed, index, 0x57EE7]``; never dense)."""
+    urban streets with parked cars (:func:`streetify`, stream ``[seed, index, 0x57EE7]``; never dense).
+    ``box_kind`` ``amodal``: each box is the vehicle's whole silhouette as if nothing hid it, clipped to the
+    view (:mod:`harness.render.amodal`, KITTI's convention) instead of its visible pixels' box; the pixels,
+    the visibility and which boxes are required stay the same."""
     if look == "realistic" and (conditions > 0 or styled > 0):
         raise SystemExit("--look realistic does not combine with --conditions or --appearance")
     if keep_source and (len(set(resolutions)) != 1 or fovea):
         raise SystemExit("--keep-source needs a single resolution and no --fovea")
     if truth_supersample > 1 and not keep_source:
         raise SystemExit("--truth-supersample needs --keep-source")
+    if box_kind not in ("visible", "amodal"):
+        raise SystemExit(f"--boxes {box_kind}: expected visible or amodal")
+    if box_kind == "amodal" and truth_supersample > 1:
+        raise SystemExit("--truth-supersample gives visible boxes only; leave it out with --boxes amodal")
     fine_rows: list[np.ndarray] = []
     out.mkdir(parents=True, exist_ok=True)
     images, rows, metas, sources = [], [], [], []
@@ -296,6 +319,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
             views.append((fov, Letterbox.fit(fov.w, fov.h, NET_W, NET_H)))
         with Renderer(scen) as r, (Renderer(supersampled(sd, truth_supersample)) if truth_supersample > 1
                                    else contextlib.nullcontext()) as r_fine:
+            r.amodal = box_kind == "amodal"
             for wstate in frames:
                 fr = r.render(wstate)
                 image_full = fr.image if style is None else appearance.apply(style, fr.image, fr.id_mask, horizon)
@@ -306,6 +330,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
                     if view is not None:
                         image, mask = view.cut(image), view.cut(mask)
                     ids, boxes, vis = visible_boxes(mask, fr.full_pixels)
+                    if box_kind == "amodal":
+                        boxes = amodal_in_view(ids, boxes, fr.amodal_boxes, view, res)
                     net = lb.to_dst(boxes)
                     big = ((net[:, 2] - net[:, 0]) >= min_size) & ((net[:, 3] - net[:, 1]) >= min_size)
                     required = (vis >= min_visibility) & big
@@ -340,7 +366,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         "min_size_net_px": min_size, "fovea": fovea, "conditions_fraction": conditions,
         "appearance_fraction": styled, "appearance_family": family, "dense_fraction": dense,
         "look": look, "look_family": look_family, "fleet": fleet}
-        | ({"street_fraction": street} if street else {}) | {"images": metas}, indent=1))
+        | ({"street_fraction": street} if street else {}) | ({"boxes": box_kind} if box_kind != "visible" else {})
+        | {"images": metas}, indent=1))
     req = sum(m["n_required"] for m in metas)
     print(f"wrote {len(images)} images, {req} required boxes, {len(rows) - req} ignored to {out} "
           f"({skipped} scenarios skipped) in {time.time() - t0:.0f}s", flush=True)
@@ -379,6 +406,9 @@ def main(argv: list[str] | None = None) -> None:
                          "(harness.world.fleet body types for traffic and placed vehicles)")
     ap.add_argument("--street", type=float, default=0.0, metavar="P",
                     help="fraction of scenarios made urban streets with parked cars (streetify; default 0)")
+    ap.add_argument("--boxes", choices=("visible", "amodal"), default="visible",
+                    help="label boxes: the visible pixels' (default) or amodal: the whole vehicle as if nothing "
+                         "hid it, clipped to the image (KITTI's convention)")
     a = ap.parse_args(argv)
     res = TRAIN_RESOLUTIONS if a.resolutions is None else tuple(
         tuple(int(v) for v in r.split("x")) for r in a.resolutions.split(","))
@@ -392,7 +422,7 @@ def main(argv: list[str] | None = None) -> None:
         ap.error("--street must be a fraction in [0, 1]")
     generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
              a.keep_source, a.truth_supersample, a.conditions, a.appearance, a.appearance_family, a.dense,
-             a.look, a.look_family, a.fleet, a.street)
+             a.look, a.look_family, a.fleet, a.street, a.boxes)
 
 
 if __name__ == "__main__":

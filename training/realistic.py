@@ -35,25 +35,31 @@ LOSS = ("focal (heatmap) + L1 on edge distances (Gaussian-weighted, each vehicle
         "bottom edge x2)")
 
 
-def val_dir(d: Path) -> Path:
-    return d / "val_realistic"
+def suffix(boxes: str) -> str:
+    """Data directory suffix of a label box kind (``generate_data --boxes``): none for the visible boxes."""
+    return "" if boxes == "visible" else f"_{boxes}"
 
 
-def make_data(d: Path, force: bool) -> list[Path]:
-    """Render the realistic shards and the held-out validation set; return the shards."""
+def val_dir(d: Path, boxes: str = "visible") -> Path:
+    return d / f"val_realistic{suffix(boxes)}"
+
+
+def make_data(d: Path, force: bool, boxes: str = "visible") -> list[Path]:
+    """Render the realistic shards and the held-out validation set with label boxes ``boxes``; return the
+    shards."""
     shards = []
     for seed, n, fovea in SHARDS:
-        out = d / f"realistic{seed}{'f' if fovea else ''}"
+        out = d / f"realistic{seed}{'f' if fovea else ''}{suffix(boxes)}"
         shards.append(out)
         if force or not (out / "meta.json").exists():
             generate_data.main(["--out", str(out), "--scenarios", str(n), "--seed", str(seed), "--look", "realistic",
-                                "--fleet", "mixed", "--dense", str(DENSE), "--resolutions", RESOLUTIONS]
-                               + (["--fovea"] if fovea else []))
+                                "--fleet", "mixed", "--dense", str(DENSE), "--resolutions", RESOLUTIONS,
+                                "--boxes", boxes] + (["--fovea"] if fovea else []))
     vs, vn, vf = VAL
-    if force or not (val_dir(d) / "meta.json").exists():
-        generate_data.main(["--out", str(val_dir(d)), "--scenarios", str(vn), "--seed", str(vs), "--frames", str(vf),
-                            "--look", "realistic", "--look-family", "heldout", "--fleet", "mixed",
-                            "--resolutions", "640x360,1242x375"])
+    if force or not (val_dir(d, boxes) / "meta.json").exists():
+        generate_data.main(["--out", str(val_dir(d, boxes)), "--scenarios", str(vn), "--seed", str(vs),
+                            "--frames", str(vf), "--look", "realistic", "--look-family", "heldout", "--fleet", "mixed",
+                            "--resolutions", "640x360,1242x375", "--boxes", boxes])
     return shards
 
 

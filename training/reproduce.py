@@ -152,9 +152,9 @@ def main(argv: list[str] | None = None) -> None:
         extra_realistic = val_figures(out, realistic.val_dir(d))
         thr = extra_realistic["f1_best"]["score_threshold"] or 0.3
     elif a.variant == "street":      # threshold: best F1 on the held-out realistic motorways and streets together
-        extra_realistic = val_figures(out, realistic.val_dir(d))
+        extra_realistic = val_figures(out, realistic.val_dir(d, street.BOXES))
         extra_street = val_figures(out, street.val_dir(d))
-        ds_thr = Dataset.concat([realistic.val_dir(d), street.val_dir(d)])
+        ds_thr = Dataset.concat([realistic.val_dir(d, street.BOXES), street.val_dir(d)])
         det = evaluate.CenterNetDetector(out, score_threshold=0.05, refine_bottom=False)
         thr = evaluate.figures(*evaluate.predict(det, ds_thr), ds_thr)["f1_best"]["score_threshold"] or 0.3
     else:
@@ -180,7 +180,9 @@ def main(argv: list[str] | None = None) -> None:
     if a.variant == "dense":
         meta["validation_dense"] = {"data": dense.VAL_NOTE, **val_figures(out, dense.val_dir(d))}
     if a.variant in ("realistic", "street"):
-        meta["validation_realistic"] = {"data": realistic.VAL_NOTE, **extra_realistic}
+        note = realistic.VAL_NOTE + ("" if a.variant == "realistic" or street.BOXES == "visible"
+                                     else f"; {street.BOXES} boxes")
+        meta["validation_realistic"] = {"data": note, **extra_realistic}
     if a.variant == "street":
         meta["validation_street"] = {"data": street.VAL_NOTE, **extra_street}
     for k, f in extra.items():

@@ -40,7 +40,8 @@ def label_fields(objects: Sequence[ObjectTruth], camera: CameraModel) -> list[di
         return []
     corners = np.array([o.corners_cam for o in objects], dtype=float)
     box = geo.kitti_box(corners)
-    trunc = geo.truncation(geo.projected_extent(corners, camera), camera.width, camera.height)
+    extent = geo.projected_extent(corners, camera)
+    trunc = geo.truncation(extent, camera.width, camera.height)
     occ = geo.occlusion([o.visibility for o in objects], trunc)
     occ_level = geo.levels(occ, geo.OCCLUSION_LEVELS)
     trunc_level = geo.levels(trunc, geo.TRUNCATION_LEVELS)
@@ -52,7 +53,7 @@ def label_fields(objects: Sequence[ObjectTruth], camera: CameraModel) -> list[di
         out.append({"id": o.id, "type": geo.kitti_type(o.length, o.width, o.body),
                     "truncated": float(trunc[k]), "truncated_level": int(trunc_level[k]),
                     "occluded": int(occ_level[k]), "alpha": float(box["alpha"][k]),
-                    "box": [float(b) for b in o.box],
+                    "box": [float(b) for b in geo.kitti_2d_box(extent[k], o.box, camera.width, camera.height)],
                     "dimensions": [float(box["h"][k]), float(box["w"][k]), float(box["l"][k])],
                     "location": [float(v) for v in box["location"][k]],
                     "rotation_y": float(box["rotation_y"][k])})

@@ -44,6 +44,7 @@ import numpy as np  # noqa: E402
 import pyrender  # noqa: E402
 from OpenGL import GL  # noqa: E402
 
+from harness.render import amodal as amodal_mod  # noqa: E402
 from harness.render import effects, meshes, passes, road, shading, visibility  # noqa: E402
 from harness.render import realistic  # noqa: E402
 from harness.render.realistic import OCCLUDER_CODE, RealisticScene, VehicleParts, flat_mesh  # noqa: E402
@@ -81,6 +82,9 @@ class RenderedFrame:
     id_mask: np.ndarray
     full_pixels: dict[int, float] = field(default_factory=dict)
     camera: CameraModel | None = None    # the frame's true camera when the scenario moves it (camera_motion)
+    #: with ``Renderer.amodal``: id -> amodal box (image px, clipped; :mod:`harness.render.amodal`) of each
+    #: vehicle drawn alone; a visible vehicle not in it is unhidden, so its visible box is its amodal box
+    amodal_boxes: dict[int, np.ndarray] = field(default_factory=dict)
 
 
 def _seg_colour(code: int) -> tuple[int, int, int]:
@@ -191,6 +195,8 @@ class Renderer:
 
             self._motion = CameraMotionModel(scenario.camera_motion, self.camera, scenario.fps, scenario.seed)
         self._motion_frame: int | None = None
+        #: True: :meth:`render` also fills ``RenderedFrame.amodal_boxes`` (for training labels; pixels unchanged)
+        self.amodal = False
         opts = scenario.render
         self._palette_seed = opts.palette_seed
         self._light_w = np.asarray(opts.light_direction, dtype=float)
@@ -453,7 +459,9 @@ class Renderer:
                 id_mask = codes.astype(np.int32) - 1
             else:
                 id_mask = np.full((c.height, c.width), -1, dtype=np.int32)
-            full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn, also=hidden_by_roadside)
+            amodal = {} if self.amodal else None
+            full = self._full_pixels(id_mask, vehicles, nodes, boxes, corners_cam, drawn, also=hidden_by_roadside,
+                                     amodal=amodal)
         if self._lens is not None:   # the pinhole canvas onto the distorted image
             canvas_ids, id_mask = id_mask, self._lens.nearest(id_mask)
             full = self._lens.full_pixels(full, canvas_ids, id_mask)
@@ -465,7 +473,21 @@ class Renderer:
                                   self._lighting, self._ray_factor)
             if self._real is not None:
                 image = self._real.sensor(image, world.frame)
-        return RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else self.frame_camera)
+        frame = RenderedFrame(world.frame, image, id_mask, full, None if self._motion is None else self.frame_camera)
+        if amodal:
+            frame.amodal_boxes = self._amodal_in_image(amodal)
+        return frame
+
+    def _amodal_in_image(self, amodal: dict) -> dict[int, np.ndarray]:
+        """id -> silhouette (canvas px: a box, or with a lens outline points) as a box on the image, clipped."""
+        c = self.frame_camera
+        out = {}
+        for vid, shape in amodal.items():
+            box = shape if self._lens is None else amodal_mod.distorted_box(shape, (self._lens.x0, self._lens.y0), c)
+            box = amodal_mod.clip_box(box, c.width, c.height)
+            if box is not None:
+                out[vid] = box
+        return out
 
     def _finish_image(self, bgr: np.ndarray, world: WorldState) -> np.ndarray:
         """The frame's image from its (lens-warped) colour pass without ``conditions``: the simple sensor, then
@@ -476,9 +498,11 @@ class Renderer:
         return image
 
     def _full_pixels(self, id_mask, vehicles, nodes, boxes, corners_cam, drawn, force=False,
-                     also: np.ndarray | None = None) -> dict[int, float]:
+                     also: np.ndarray | None = None, amodal: dict | None = None) -> dict[int, float]:
         """Unoccluded, unbounded pixel count of every vehicle visible in ``id_mask``; ``also``: (N,) bool,
-        vehicles to render unoccluded besides those the shortcut picks (e.g. hidden by the roadside)."""
+        vehicles to render unoccluded besides those the shortcut picks (e.g. hidden by the roadside).
+        ``amodal``: filled with id -> the silhouette of each vehicle drawn alone, in canvas px (its box; with
+        a lens, its outline points)."""
         c = self._drawn(self.frame_camera)
         ids, counts = np.unique(id_mask, return_counts=True)      # ascending ids (np.bincount: 3x slower)
         visible = ids[ids >= 0].tolist()
@@ -500,9 +524,22 @@ class Renderer:
                 for k, i in enumerate(members):
                     vid = vehicles[i].id
                     full[vid] = max(float(n_px[k + 1]) * win.scale ** 2, full[vid])
+                if amodal is not None:
+                    self._silhouettes(codes[::-1], win, members, vehicles, amodal)
         finally:
             self._set_intrinsics(c.fx, c.fy, c.cx, c.cy)
         return full
+
+    def _silhouettes(self, codes: np.ndarray, win, members: list[int], vehicles, amodal: dict) -> None:
+        """Fill ``amodal`` from one sub-window's id pass (``codes`` top row first)."""
+        if self._lens is None:
+            for k, box in amodal_mod.window_silhouette_boxes(codes, win.x0, win.y0, win.scale, len(members)).items():
+                amodal[vehicles[members[k]].id] = box
+            return
+        for k, i in enumerate(members):
+            pts = amodal_mod.window_silhouette_outline(codes, k, win.x0, win.y0, win.scale)
+            if len(pts):
+                amodal[vehicles[i].id] = pts
 
     def full_pixels_rendered(self, world: WorldState, id_mask: np.ndarray) -> dict[int, float]:
         """Like ``RenderedFrame.full_pixels`` but every vehicle through a sub-window render

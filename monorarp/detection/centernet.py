@@ -280,9 +280,9 @@ class RealisticCenterNetDetector(CenterNetDetector):
 
 
 class StreetCenterNetDetector(CenterNetDetector):
-    """:class:`CenterNetDetector` with ``centernet_vehicle_street.onnx``: the realistic model fine-tuned on
-    realistic renders of motorways and urban streets (registered as ``centernet_street``; training and
-    figures: docs/looks.md)."""
+    """:class:`CenterNetDetector` with ``centernet_vehicle_street.onnx``: trained from scratch on realistic
+    renders of motorways and urban streets (registered as ``centernet_street``; training
+    and figures: docs/streets.md)."""
 
     def __init__(self, model_path: str | Path | None = None, camera: CameraModel | dict | None = None,
                  **kw) -> None:
