@@ -1,8 +1,10 @@
 """Frames/s of simulation + rendering (colour + id pass + ground truth) with 30 vehicles.
 
-Usage: python benchmarks/bench_render.py [--frames N] [--look simple|realistic|both] [--street]
+Usage: python benchmarks/bench_render.py [--frames N] [--look simple|realistic|both] [--street] [--scenario S.yaml]
 With ``--street`` the road is an urban street (two 3.25 m lanes, parking strips with 10 parked cars per 100 m
 a side, pavements, the realistic look's frontage; ``road.street``) and the 30 vehicles drive at 8-13 m/s.
+With ``--scenario`` that scenario file is timed instead (its render block's look replaced by ``--look``, its
+camera resized to each resolution), e.g. ``scenarios/highway_cruise.yaml``.
 Uses harness.simulation when present, else synthetic constant-velocity traffic.
 Prints one line per resolution: wall-clock frames/s and the process CPU time per
 frame (all threads; a fairer figure when other jobs share the cores).
@@ -60,8 +62,20 @@ def states(scenario: Scenario, n_frames: int):
     return simulate(scenario, n_frames), "harness.simulation"
 
 
-def bench(width: int, height: int, n_frames: int, look: str = "simple", street: bool = False) -> None:
-    scenario = scenario_for(width, height, look, street)
+def from_file(path: str, width: int, height: int, look: str) -> Scenario:
+    """The scenario file with its look replaced and its camera at ``width`` x ``height``."""
+    from harness.world.scenario import load_scenario_dict
+
+    d = load_scenario_dict(path)                # a missing or malformed file: one line (ScenarioError)
+    d["camera"] = {**(d.get("camera") or {}), "width": width, "height": height}
+    d["render"] = {**(d.get("render") or {}), "look": look}
+    return parse_scenario(d)
+
+
+def bench(width: int, height: int, n_frames: int, look: str = "simple", street: bool = False,
+          scenario_file: str | None = None) -> None:
+    scenario = scenario_for(width, height, look, street) if scenario_file is None else \
+        from_file(scenario_file, width, height, look)
     with Renderer(scenario) as renderer:
         it, source = states(scenario, n_frames + 3)
         t_sim = t_render = t_truth = 0.0
@@ -83,7 +97,8 @@ def bench(width: int, height: int, n_frames: int, look: str = "simple", street: 
             t_sim, t_render, t_truth = t_sim + b - a, t_render + c - b, t_truth + d - c
             n_obj += len(truth.objects)
         total, cpu = time.perf_counter() - t0, time.process_time() - c0
-    print(f"{look} look{', street' if street else ''}, {width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
+    where = f", {scenario.name}" if scenario_file else ", street" if street else ""
+    print(f"{look} look{where}, {width}x{height} ({source}, {len(world.vehicles)} vehicles, {n_obj / n_frames:.1f} visible): "
           f"{n_frames / total:.1f} frames/s (process CPU {1e3 * cpu / n_frames:.1f} ms/frame, all threads); per frame sim {1e3 * t_sim / n_frames:.1f} ms, "
           f"render {1e3 * t_render / n_frames:.1f} ms, truth {1e3 * t_truth / n_frames:.1f} ms")
 
@@ -93,10 +108,11 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=60)
     ap.add_argument("--look", choices=("simple", "realistic", "both"), default="both")
     ap.add_argument("--street", action="store_true", help="an urban street with parked cars (road.street)")
+    ap.add_argument("--scenario", default=None, metavar="S.yaml", help="time this scenario file instead")
     args = ap.parse_args()
     for look in ("simple", "realistic") if args.look == "both" else (args.look,):
         for w, h in ((640, 360), (1280, 720)):
-            bench(w, h, args.frames, look, args.street)
+            bench(w, h, args.frames, look, args.street, args.scenario)
 
 
 if __name__ == "__main__":
