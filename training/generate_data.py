@@ -51,6 +51,7 @@ from scipy import ndimage  # noqa: E402
 from harness.render.renderer import Renderer  # noqa: E402
 from harness.world.scenario import ScenarioError, parse_scenario  # noqa: E402
 from harness.simulation.simulator import simulate  # noqa: E402
+from monorarp.core import boxes as box_ops  # noqa: E402
 from monorarp.detection.fovea import Fovea  # noqa: E402
 from monorarp.detection.letterbox import Letterbox  # noqa: E402
 from training import appearance  # noqa: E402
@@ -214,10 +215,8 @@ def amodal_in_view(ids: np.ndarray, boxes: np.ndarray, amodal: dict[int, np.ndar
     out = boxes.copy()
     for k, vid in enumerate(ids):
         a = amodal.get(int(vid))
-        if a is None:
-            continue
-        a = np.array([max(a[0] - x0, -0.5), max(a[1] - y0, -0.5), min(a[2] - x0, w - 0.5), min(a[3] - y0, h - 0.5)])
-        out[k] = np.r_[np.minimum(a[:2], boxes[k, :2]), np.maximum(a[2:], boxes[k, 2:])]
+        if a is not None:
+            out[k] = box_ops.hull(box_ops.clip_to_image(np.asarray(a) - [x0, y0, x0, y0], w, h), boxes[k])
     return out
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from monorarp.core import boxes
 from monorarp.core.camera import CameraModel
 
 #: Nearest depth (m) a box edge is kept at before it is projected (clipped there).
@@ -133,12 +134,10 @@ def kitti_2d_box(extent: np.ndarray, visible_box, width: int, height: int) -> np
     occluded vehicle's box covers its hidden part too (KITTI's labels: median IoU 0.97 with their projected
     3-D boxes, largely occluded cars included); grown to hold ``visible_box`` (a mirror may reach past
     the 3-D box)."""
-    e = np.asarray(extent, dtype=float)
     v = np.asarray(visible_box, dtype=float)
-    if not np.all(np.isfinite(e)):
+    if not np.all(np.isfinite(extent)):
         return v
-    clipped = np.array([max(e[0], -0.5), max(e[1], -0.5), min(e[2], width - 0.5), min(e[3], height - 0.5)])
-    return np.r_[np.minimum(clipped[:2], v[:2]), np.maximum(clipped[2:], v[2:])]
+    return boxes.hull(boxes.clip_to_image(extent, width, height), v)
 
 
 def truncation(extent: np.ndarray, width: int, height: int) -> np.ndarray:

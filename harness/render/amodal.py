@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
+from monorarp.core.boxes import clip_to_image
 from monorarp.core.camera import CameraModel
 
 
@@ -67,5 +68,5 @@ def distorted_box(outline_canvas: np.ndarray, canvas_origin: tuple[int, int], ca
 
 def clip_box(box: np.ndarray, width: int, height: int) -> np.ndarray | None:
     """``box`` clipped to a ``width`` x ``height`` image; None when nothing of it is inside."""
-    b = np.array([max(box[0], -0.5), max(box[1], -0.5), min(box[2], width - 0.5), min(box[3], height - 0.5)])
+    b = clip_to_image(box, width, height)
     return b if b[2] > b[0] and b[3] > b[1] else None

@@ -34,6 +34,21 @@ def intersection(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return iw * ih
 
 
+def clip_to_image(b: Boxes, width: int, height: int) -> np.ndarray:
+    """(..., 4) boxes clipped to a ``width`` x ``height`` image (its edges at -0.5 and ``width - 0.5``; an
+    empty result has x2 <= x1 or y2 <= y1)."""
+    b = np.array(b, dtype=float)
+    b[..., :2] = np.maximum(b[..., :2], -0.5)
+    b[..., 2:] = np.minimum(b[..., 2:], [width - 0.5, height - 0.5])
+    return b
+
+
+def hull(a: Boxes, b: Boxes) -> np.ndarray:
+    """The smallest box holding both (..., 4) boxes ``a`` and broadcastable ``b``."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return np.concatenate([np.minimum(a[..., :2], b[..., :2]), np.maximum(a[..., 2:], b[..., 2:])], axis=-1)
+
+
 def iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Element-wise IoU of (..., 4) boxes ``a`` with broadcastable ``b``."""
     inter = intersection(a, b)

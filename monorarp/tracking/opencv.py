@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from monorarp.core.boxes import clip_to_image
 from monorarp.tracking.association import associate_iou
 from monorarp.core.types import Detection, Track
 
@@ -65,8 +66,7 @@ def inside_fraction(box: Sequence[float], width: int, height: int) -> float:
 
 
 def clip_box(box: Sequence[float], width: int, height: int) -> tuple[float, float, float, float]:
-    x1, y1, x2, y2 = box
-    return (max(x1, -0.5), max(y1, -0.5), min(x2, width - 0.5), min(y2, height - 0.5))
+    return tuple(float(v) for v in clip_to_image(box, width, height))
 
 
 @dataclass
