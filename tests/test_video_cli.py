@@ -298,6 +298,20 @@ def test_horizon_helper_recovers_rendered_horizon(clip, tmp_path, pitch_deg, cap
     assert abs(math.radians(printed["pitch_deg"]) - cam.pitch_rad) < math.atan(3.0 / cam.fy)
 
 
+def test_horizon_helper_reads_a_distorted_clip_in_its_pinhole_view(tmp_path, capsys):
+    """Lane lines curve through a barrel lens; in the lens's virtual pinhole view they are straight again."""
+    lens = [-0.22, 0.05, 0.0008, -0.0005, 0.0]
+    rendered = _render(tmp_path, _scenario(tmp_path, "lens", hfov_deg=70, distortion=lens), 30)
+    truth_row = json.loads((rendered / "camera.json").read_text())["horizon_row"]
+    capsys.readouterr()
+    assert main(["calibrate-horizon", str(rendered / "frames.mp4"), "--camera", str(rendered / "camera.json")]) == 0
+    printed = yaml.safe_load(capsys.readouterr().out)
+    cam = CameraModel.load(rendered / "camera.json")
+    as_pinhole = estimate_horizon(_decode(rendered / "frames.mp4"), cam.fy, cam.cy)   # the lens ignored
+    assert abs(printed["horizon_row"] - truth_row) < 0.25
+    assert abs(as_pinhole.row - truth_row) > 2 * abs(printed["horizon_row"] - truth_row)
+
+
 def test_horizon_helper_on_a_video_at_another_size_speaks_in_the_camera_files_pixels(clip, tmp_path, capsys):
     big = tmp_path / "big.mp4"
     writer = cv2.VideoWriter(str(big), cv2.VideoWriter_fourcc(*"mp4v"), FPS, (2 * W, 2 * H))

@@ -32,6 +32,7 @@ from monorarp.core.camera import CameraModel
 from monorarp.pipeline import registry
 from monorarp.pipeline.config import ComponentConfig, PipelineConfig
 from monorarp.pipeline.detectors import build_detector
+from monorarp.pipeline.pinhole_stage import PinholeImageStage
 from monorarp.core.types import (Detection, Detector, EgoSpeedEstimator, Frame, FrameResult, HorizonReading, HorizonStage,
                             ObjectState, RiskEstimate, RiskEstimator, StateEstimator, Track, Tracker, WarningStage,
                             WarningState, strong)
@@ -89,9 +90,16 @@ class Pipeline:
         def build(kind: str, comp: ComponentConfig | None) -> Any:
             return None if comp is None else registry.build(kind, comp.name, comp.kwargs, camera)
 
+        def build_lane_stage(kind: str, comp: ComponentConfig | None) -> Any:
+            """A lane-marking stage; on a distorted camera, in its virtual pinhole view (:mod:`.pinhole_stage`)."""
+            if (comp is not None and camera is not None and camera.distorted and "camera" not in comp.kwargs
+                    and registry.uses(registry.get_factory(kind, comp.name), "camera")):
+                return PinholeImageStage(lambda cam: registry.build(kind, comp.name, comp.kwargs, cam), camera, kind)
+            return build(kind, comp)
+
         def build_ego_speed() -> Any:   # e.g. a camera that sees too little road: say which stage fails
             try:
-                return build("ego_speed", cfg.ego_speed)
+                return build_lane_stage("ego_speed", cfg.ego_speed)
             except EgoSpeedError as e:
                 raise EgoSpeedStageError(f"ego-speed stage {cfg.ego_speed.name!r} (lane-marking ego-speed "
                                          f"estimator) cannot run: {e}") from None
@@ -99,7 +107,7 @@ class Pipeline:
         return cls(detector=build_detector(cfg.detector, camera), tracker=build("tracker", cfg.tracker),
                    state=build("state", cfg.state), risk=build("risk", cfg.risk),
                    ego_speed=build_ego_speed(), warning=build("warning", cfg.warning),
-                   horizon=build("horizon", cfg.horizon))
+                   horizon=build_lane_stage("horizon", cfg.horizon))
 
     def reset(self) -> None:
         """Start a new sequence: every stateful stage forgets its history."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import replace
 from pathlib import Path
 
 from monorarp.app.common_options import (add_camera_option, add_frames_option, add_no_video_option, add_out_option,
@@ -90,11 +91,17 @@ def calibrate_command(args: argparse.Namespace) -> int:
     from monorarp.horizon.vanishing import estimate_horizon
     from monorarp.app.video.run import camera_for
     from monorarp.app.video.source import VideoSource
+    from monorarp.state.pinhole_view import pinhole_view
 
     camera = CameraModel.load(args.camera)
     with VideoSource(args.input) as source:
         cam, scaled = camera_for(camera, source.info)
-        est = estimate_horizon((f.image for f in source.frames(args.frames)), cam.fy, cam.cy)
+        if cam.distorted:   # lane lines are straight in the lens's virtual pinhole view (docs/lens.md)
+            view = pinhole_view(cam, None)
+            est = estimate_horizon((view.image(f.image) for f in source.frames(args.frames)), cam.fy, cam.cy - view.y0)
+            est = replace(est, row=est.row + view.y0, u=est.u + view.x0)   # the real camera's ideal pixels
+        else:
+            est = estimate_horizon((f.image for f in source.frames(args.frames)), cam.fy, cam.cy)
     print(f"# {source.name}: vanishing point found in {est.frames_used} of {est.frames_seen} frames, "
           f"spread {est.spread_px:.2f} px (scaled MAD), column {est.u:.1f} px")
     row_file = (est.row + 0.5) * camera.height / cam.height - 0.5   # rows in the camera file's image
