@@ -574,3 +574,51 @@ def test_border_tolerance_scales_with_the_frame_width():
     assert StateEstimator(cam).border_tol_px == pytest.approx(12.0)
     assert StateEstimator(cam, border_tol_px=4.0).border_tol_px == 4.0
     assert StateEstimator(cam, border_tol_px=None).border_tol_px is None
+
+
+def test_a_far_side_behind_a_nearer_parked_car_is_read_from_the_near_edge(level_cam):
+    """Two cars parked in a row on the right, 1.5 m apart (cv2.projectPoints boxes): the nearer one hides the
+    farther one's outer (far) side, so the farther box ends where the nearer begins. Its far-edge reading
+    pulls it over 0.9 m towards the ego's path; taken as a cut side (hidden_sides) the near edge reads its
+    lateral position exactly (its length is the assumed 4.5 m), and the estimator does the same."""
+    from monorarp.state.geometry import hidden_sides
+
+    X, Y_far, Y_near = 2.8, 15.0, 9.0
+    near = vehicle_box(level_cam, X, Y_near)
+    whole = vehicle_box(level_cam, X, Y_far)
+    far = (whole[0], whole[1], near[0], whole[3])                   # its right part lies behind the nearer car
+    assert whole[0] < near[0] < whole[2] and near[3] > whole[3]
+    boxes = np.array([far, near])
+    hidden = hidden_sides(boxes)
+    np.testing.assert_array_equal(hidden, [[False, True], [False, False]])
+    y = np.array([Y_far, Y_near])
+    assert lateral_from_terms(lateral_terms(level_cam, boxes, hidden=hidden), y) == pytest.approx([X, X], abs=1e-3)
+    assert lateral_from_terms(lateral_terms(level_cam, boxes), y)[0] < X - 0.9
+    # nothing is hidden by a box that is not nearer, nor by one holding the whole box
+    np.testing.assert_array_equal(hidden_sides(boxes[::-1])[::-1], hidden)
+    assert not hidden_sides(np.array([far, (far[0] - 5, far[1] - 5, far[2] + 5, far[3] + 5)])).any()
+    assert not hidden_sides(np.array([far, (near[0], far[1], near[2], far[3])])).any()   # same bottom row
+
+    def d_x(**kw):
+        est = StateEstimator(level_cam, **kw)
+        for k in range(10):
+            out = est.update([Track(1, far), Track(2, near)], k / FPS)
+        return out[1].d_x
+
+    assert d_x() == pytest.approx(X, abs=0.1)
+    assert d_x(hidden_side_px=None) < X - 0.7
+
+
+def test_a_filter_restarted_on_a_box_that_gives_no_distance_outputs_none_until_one_does(level_cam):
+    """A track on a next-lane car at 12 m whose box jumps to another vehicle, close beside the ego with its
+    bottom below the frame: the filter restarts there and knows no distance (it started at 0 m and read
+    the car as in the ego's path at contact); it is output again once a box gives a distance."""
+    est = StateEstimator(level_cam)
+    for k in range(10):
+        assert 1 in est.update([Track(1, vehicle_box(level_cam, 3.5, 12.0))], k / FPS)
+    cut = visible_box(level_cam, -1.0, 1.0)
+    assert cut[3] >= level_cam.height - 1.5
+    assert est.update([Track(1, cut)], 10 / FPS) == {}
+    assert est.update([Track(1, cut)], 11 / FPS) == {}
+    back = est.update([Track(1, vehicle_box(level_cam, -1.0, 6.0))], 12 / FPS)
+    assert back[1].d_y == pytest.approx(6.0, abs=0.3)

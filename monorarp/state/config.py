@@ -131,6 +131,9 @@ class StateConfig(BaseModel):
     fragment_width_ratio: float = Field(1.5, ge=0, description="... that box at least this many times as wide")
     fragment_bottom_px: float = Field(3.0, ge=0, description=(
         "... their bottom edges within this (px at 640 px width; scaled with the image)"))
+    hidden_side_px: float | None = Field(2.0, ge=0, description=(
+        "a box side within this (px at 640 px width; scaled with the image) of a nearer vehicle's box reaching "
+        "across it is that vehicle's edge: the lateral reading takes the other side, as at a border; None: off"))
     hidden_share: float | None = Field(0.5, ge=0, lt=1, description=(
         "a box over more than this share of its area behind a nearer vehicle's box shows a part of it; None: off"))
 

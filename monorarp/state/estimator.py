@@ -69,6 +69,7 @@ class StateEstimator:
         self.camera = camera if isinstance(camera, CameraModel) else CameraModel.from_dict(camera)
         self.border_tol_px = border_tolerance(c.border_tol_px, self.camera.width)
         self.fragment_bottom_px = c.fragment_bottom_px * self.camera.width / 640.0   # px of this image
+        self.hidden_side_px = None if c.hidden_side_px is None else c.hidden_side_px * self.camera.width / 640.0
         self._near_edge = NearEdgeOffsets(c.offset_learn_margin_px, c.max_inward_offset_m)
         self._expansion = ExpansionFilter(pixel_std=c.expansion_pixel_std, process_std=c.expansion_process_std,
                                           accel_std=c.expansion_accel_std,
@@ -262,7 +263,8 @@ class StateEstimator:
                                                       length_m=c.vehicle_length_m,
                                                       contact_offset_m=c.contact_offset_m)
         return self._near_edge.readings(self.camera, ids, boxes, ground, c.vehicle_width_m, c.vehicle_length_m,
-                                        c.contact_offset_m, c.ground_clearance_m, self.border_tol_px)
+                                        c.contact_offset_m, c.ground_clearance_m, self.border_tol_px,
+                                        self.hidden_side_px)
 
     # ------------------------------------------------------------------ the stage
     def update(self, tracks: Sequence[Track], t: float, horizon: HorizonReading | None = None,
@@ -404,7 +406,10 @@ class StateEstimator:
             if has:
                 self._measured[i] = t
         stale = np.array([t - self._measured.get(i, t) > c.max_unmeasured_s + 1e-9 for i in ids])
-        ok = ok & ~(stale & ~cut_bottom)
+        # A filter (re)started on a box that gives no distance (cut by the bottom border from its first
+        # sighting, or after a jump to another vehicle) knows none: its 0 m start is no estimate.
+        unmeasured = np.array([self._measured.get(i, -np.inf) < kf.born.get(i, t) for i in ids], dtype=bool)
+        ok = ok & ~(stale & ~cut_bottom) & ~unmeasured
         return {tid: ObjectState(tid, *map(float, row), *map(float, sd), *(None, None) if ac is None else map(float, ac),
                                  age_s=float(t - kf.born[tid]), expansion_rate=_finite_or_none(er),
                                  expansion_rate_std=_finite_or_none(er_std), registered_rate=_finite_or_none(rr),

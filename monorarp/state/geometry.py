@@ -78,19 +78,38 @@ def box_distance(camera: CameraModel, boxes: np.ndarray, contact_offset_m: float
     return np.where(border_flags(camera, b, border_tol_px)[:, 2], np.nan, d_y)
 
 
+def hidden_sides(boxes: np.ndarray, tol_px: float = 2.0) -> np.ndarray:
+    """(M, 2) bool: box i's left, right side is the edge of a nearer vehicle in front of it, not its own.
+
+    A nearer box (bottom edge lower in the image by over 1 px) that spans box i's bottom row and reaches
+    across one of its sides, to within ``tol_px`` of it, without holding the whole box: box i ends where
+    the nearer vehicle begins. Only one side counts: where both are such edges, neither does.
+    """
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    i, j = b[:, None, :], b[None, :, :]
+    front = (j[..., 3] > i[..., 3] + 1.0) & (j[..., 1] < i[..., 3])
+    left = front & (j[..., 0] < i[..., 0]) & (i[..., 0] <= j[..., 2] + tol_px) & (j[..., 2] < i[..., 2])
+    right = front & (j[..., 2] > i[..., 2]) & (i[..., 2] >= j[..., 0] - tol_px) & (j[..., 0] > i[..., 0])
+    out = np.stack([left.any(axis=1), right.any(axis=1)], axis=1)
+    return out & ~out[:, ::-1]
+
+
 def lateral_terms(camera: CameraModel, boxes: np.ndarray, vehicle_width_m: float = 1.8,
                   vehicle_length_m: float = 4.5, ground_clearance_m: float = 0.17,
-                  border_tol_px: float | None = BORDER_TOL_PX) -> np.ndarray:
+                  border_tol_px: float | None = BORDER_TOL_PX, hidden: np.ndarray | None = None) -> np.ndarray:
     """(M, 3) ``(a, b, c)`` with ``d_x = a (d_y + b) + c`` (m) for each box; NaN row: not measurable.
 
     Equation 4 is linear in the distance ``d_y``, so the box gives these terms and any
     ``d_y`` (measured, or the filter's when the bottom edge is cut) gives ``d_x``.
     Far edge (rear outer corner) when it is inside the image; otherwise the near edge
-    (front inner corner, ``b = L + ...``); see docs/state_estimation.md.
+    (front inner corner, ``b = L + ...``); see docs/state_estimation.md. ``hidden`` (M, 2) bool: the
+    left, right side is not the vehicle's own (:func:`hidden_sides`) and counts as cut.
     """
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)
     x1, y1, x2, v_b = b.T
     cut_l, cut_r, _ = border_flags(camera, b, border_tol_px).T
+    if hidden is not None:
+        cut_l, cut_r = cut_l | hidden[:, 0], cut_r | hidden[:, 1]
     cx, half = camera.cx, vehicle_width_m / 2
     right, left = x1 > cx, x2 < cx
     straddle = ~right & ~left

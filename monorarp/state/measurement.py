@@ -18,7 +18,7 @@ import numpy as np
 
 from monorarp.core.boxes import BORDER_TOL_PX
 from monorarp.core.camera import CameraModel
-from monorarp.state.geometry import (border_flags, box_distance, contact_line_cut, lateral_from_terms,
+from monorarp.state.geometry import (border_flags, box_distance, contact_line_cut, hidden_sides, lateral_from_terms,
                                      lateral_terms, near_edge_terms, too_narrow)
 
 
@@ -119,15 +119,22 @@ class NearEdgeOffsets:
 
     def readings(self, camera: CameraModel, ids: Sequence[int], boxes: np.ndarray, ground_y: np.ndarray | None,
                  vehicle_width_m: float, vehicle_length_m: float, contact_offset_m: float,
-                 ground_clearance_m: float, border_tol_px: float | None) -> tuple[np.ndarray, np.ndarray]:
+                 ground_clearance_m: float, border_tol_px: float | None,
+                 hidden_tol_px: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Measured ``d_y`` (M,; NaN where the box gives none) and the lateral terms (M, 3) of
         :func:`~monorarp.state.geometry.lateral_terms`, per track calibrated, of the (M, 4) ``boxes``
         of tracks ``ids``. ``ground_y``: each bottom row's ground distance (m) from a measured road
-        profile (:func:`monorarp.state.ground_contact.contact_ground`); None: the flat ground's."""
+        profile (:func:`monorarp.state.ground_contact.contact_ground`); None: the flat ground's.
+        ``hidden_tol_px``: a side that is a nearer box's edge (:func:`~monorarp.state.geometry.hidden_sides`,
+        this tolerance) counts as cut, as a border does; None: never."""
         d_y = box_distance(camera, boxes, contact_offset_m, ground_clearance_m, border_tol_px, ground_y)
-        terms = lateral_terms(camera, boxes, vehicle_width_m, vehicle_length_m, ground_clearance_m, border_tol_px)
+        hidden = None if hidden_tol_px is None else hidden_sides(boxes, hidden_tol_px)
+        terms = lateral_terms(camera, boxes, vehicle_width_m, vehicle_length_m, ground_clearance_m, border_tol_px,
+                              hidden)
         near = near_edge_terms(camera, boxes, vehicle_width_m, vehicle_length_m, ground_clearance_m)
         flags = border_flags(camera, boxes, border_tol_px)
+        if hidden is not None:
+            flags[:, :2] |= hidden
         whole = ~flags[:, 0] & ~flags[:, 1] & np.isfinite(near[:, 0]) & np.isfinite(d_y)
         if self.learn_margin_px is not None:
             whole &= ~border_flags(camera, boxes, self.learn_margin_px)[:, :2].any(axis=1)
