@@ -81,3 +81,13 @@ def test_the_batch_hands_clutter_the_letterbox_content_window_and_its_boxes(monk
     seen.clear()
     train.make_batch(ds, np.array([0]), np.random.default_rng(1), 4, True)
     assert seen == []                                          # default: no clutter
+
+
+@pytest.mark.parametrize("bad", ["1.5", "-0.1", "nan", "x"])
+def test_train_refuses_a_clutter_probability_outside_0_1(bad, capsys):
+    pytest.importorskip("torch")
+    from training import train
+
+    with pytest.raises(SystemExit) as e:
+        train.main(["--data", "nowhere", "--out", "nowhere.pt", "--clutter", bad])
+    assert e.value.code == 2 and "not a probability" in capsys.readouterr().err

@@ -133,6 +133,17 @@ def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed:
     print(f"done in {time.time() - t0:.0f}s -> {out}", flush=True)
 
 
+def probability(text: str) -> float:
+    """argparse type: a number in [0, 1]."""
+    try:
+        p = float(text)
+    except ValueError:
+        p = float("nan")
+    if not 0.0 <= p <= 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a probability in [0, 1]")
+    return p
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--data", type=Path, nargs="+", default=[Path("data/train0"), Path("data/train1")])
@@ -144,7 +155,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--init", type=Path, default=None, help="fine-tune from this checkpoint's weights")
     ap.add_argument("--freeze-bn", action="store_true", help="keep BatchNorm statistics fixed (init from ONNX)")
-    ap.add_argument("--clutter", type=float, default=0.0, metavar="P",
+    ap.add_argument("--clutter", type=probability, default=0.0, metavar="P",
                     help="probability of each procedural clutter augmentation (foliage, shade; training.clutter)")
     a = ap.parse_args(argv)
     a.out.parent.mkdir(parents=True, exist_ok=True)
