@@ -13,9 +13,17 @@ import numpy as np
 import torch
 
 from training.data import Dataset
-from training.model import CenterNetVehicle, ExportWrapper
+from training.model import CenterNetVehicle, ExportWrapper, of_size
 
 INPUT_W, INPUT_H = 320, 192
+
+
+def load_net(ckpt: Path) -> CenterNetVehicle:
+    """The trained net of a checkpoint, of the size it records (``small`` when it records none)."""
+    state = torch.load(ckpt, map_location="cpu")
+    net = of_size(state.get("size", "small"))
+    net.load_state_dict(state["model"])
+    return net
 
 
 def export(ckpt: Path, out: Path, check_data: Path | None = None, n_check: int = 8) -> float:
@@ -23,9 +31,7 @@ def export(ckpt: Path, out: Path, check_data: Path | None = None, n_check: int =
     import onnx
     import onnxruntime as ort
 
-    net = CenterNetVehicle()
-    net.load_state_dict(torch.load(ckpt, map_location="cpu")["model"])
-    model = ExportWrapper(net).eval()
+    model = ExportWrapper(load_net(ckpt)).eval()
     dummy = torch.zeros(1, 3, INPUT_H, INPUT_W)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_suffix(".tmp.onnx")

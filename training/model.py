@@ -76,5 +76,20 @@ class ExportWrapper(nn.Module):
         return torch.sigmoid(hm), ltrb
 
 
+#: named widths (``train --size``; the checkpoint records its size). small: 401k parameters (1.6 MB), the shipped
+#: models; large: 2.42M (9.7 MB), about twice the compute (most of it at strides 8-32)
+SIZES: dict[str, dict] = {
+    "small": {},
+    "large": {"width": (24, 48, 96, 160, 256), "neck": 64, "head": 32},
+}
+
+
+def of_size(size: str = "small") -> CenterNetVehicle:
+    """A fresh net of a named size (:data:`SIZES`)."""
+    if size not in SIZES:
+        raise ValueError(f"unknown net size {size!r}; known: {', '.join(SIZES)}")
+    return CenterNetVehicle(**SIZES[size])
+
+
 def n_params(net: nn.Module) -> int:
     return sum(p.numel() for p in net.parameters())

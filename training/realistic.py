@@ -64,12 +64,13 @@ def make_data(d: Path, force: bool, boxes: str = "visible") -> list[Path]:
 
 
 def from_scratch(shards: list[Path], ckpt: Path, force: bool, epochs: int = EPOCHS, batch: int = BATCH,
-                 lr: float = LR, seed: int = SEED, clutter: float = 0.0) -> Path:
+                 lr: float = LR, seed: int = SEED, clutter: float = 0.0, size: str = "small") -> Path:
     """Train the net from scratch on ``shards`` into ``ckpt`` (skipped when it exists, unless ``force``);
-    ``clutter``: ``train --clutter`` (:mod:`training.clutter`; 0: none)."""
+    ``clutter``: ``train --clutter`` (:mod:`training.clutter`; 0: none); ``size``: ``train --size``."""
     if force or not ckpt.exists():
         train.main(["--data", *map(str, shards), "--out", str(ckpt), "--epochs", str(epochs), "--batch", str(batch),
-                    "--lr", str(lr), "--seed", str(seed)] + (["--clutter", str(clutter)] if clutter > 0 else []))
+                    "--lr", str(lr), "--seed", str(seed)] + (["--clutter", str(clutter)] if clutter > 0 else [])
+                   + (["--size", size] if size != "small" else []))
     return ckpt
 
 

@@ -30,6 +30,7 @@ import numpy as np
 from monorarp.core.camera import CameraModel
 from training import dense, evaluate, export, generate_data, realistic, robust, street, train
 from training.data import Dataset
+from training.model import n_params
 
 TRAIN_SHARDS = ((0, 150), (1, 150))       # (seed, scenarios); 10 frames each
 FOVEA_SHARDS = ((2, 150),)                 # (seed, scenarios); 10 frames each, full view + fovea crop
@@ -38,11 +39,10 @@ EPOCHS, BATCH, LR, SEED = 24, 16, 3e-3, 0  # stage 1: from scratch on TRAIN_SHAR
 FT_EPOCHS, FT_LR, FT_SEED = 10, 1e-3, 1    # stage 2: fine-tune on TRAIN_SHARDS + FOVEA_SHARDS
 
 
-def model_card(name: str, score_threshold: float, model_path: Path) -> dict:
-    """The metadata fields every CenterNet model file carries (input, outputs, decoding, size)."""
+def model_card(name: str, score_threshold: float, model_path: Path, params: int) -> dict:
+    """The metadata fields every CenterNet model file carries (input, outputs, decoding, size); ``params``: the
+    trained net's parameter count."""
     import onnx
-
-    from training.model import CenterNetVehicle, n_params
 
     return {
         "name": name,
@@ -53,7 +53,7 @@ def model_card(name: str, score_threshold: float, model_path: Path) -> dict:
                             "left, top, right, bottom edges"},
         "stride": 4, "pad_value": 114, "label": "car", "max_detections": 100,
         "score_threshold": round(float(score_threshold), 3),
-        "params": n_params(CenterNetVehicle()),
+        "params": params,
         "opset": 17, "onnx_ir_version": onnx.load(str(model_path)).ir_version,
     }
 
@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> None:
                 "required boxes: visibility >= 0.3 and >= 3 px at 320x192 (others ignored)")
     cards = {"robust": robust.training_card, "dense": lambda: dense.training_card(training_card()["data"]),
              "realistic": realistic.training_card, "street": street.training_card}
-    meta = model_card(out.stem, thr, out) | {
+    meta = model_card(out.stem, thr, out, n_params(export.load_net(ckpt))) | {
         "training": cards.get(a.variant, training_card)(),
         "validation": {"data": val_note, **figs}}
     if a.variant == "dense":

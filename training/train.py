@@ -25,7 +25,7 @@ import torch
 
 from training import clutter
 from training.data import Dataset, gaussian_targets
-from training.model import CenterNetVehicle, n_params
+from training.model import SIZES, n_params, of_size
 
 EDGE_WEIGHTS = (1.0, 1.0, 1.0, 2.0)
 
@@ -84,16 +84,17 @@ def make_batch(ds: Dataset, idx: np.ndarray, rng: np.random.Generator, stride: i
 
 
 def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed: int, threads: int,
-          log_every: int = 20, init: Path | None = None, freeze_bn: bool = False, clutter_p: float = 0.0) -> None:
+          log_every: int = 20, init: Path | None = None, freeze_bn: bool = False, clutter_p: float = 0.0,
+          size: str = "small") -> None:
     """Train (from scratch, or fine-tune from checkpoint ``init``) and save to ``out`` after every epoch.
     ``freeze_bn``: BatchNorm layers use their running statistics (not the batch's) and keep them; needed
     when ``init`` comes from an exported model, whose BatchNorms are folded into the convs. ``clutter_p``: see
-    :func:`make_batch`."""
+    :func:`make_batch`. ``size``: the net's widths (:data:`training.model.SIZES`)."""
     torch.manual_seed(seed)
     torch.set_num_threads(threads)
     rng = np.random.default_rng(seed)
     ds = Dataset.concat(data)
-    net = CenterNetVehicle()
+    net = of_size(size)
     if init is not None:
         net.load_state_dict(torch.load(init, map_location="cpu")["model"])
     stride = net.stride
@@ -129,7 +130,7 @@ def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed:
                 print(f"ep {ep} step {step}/{total} hm {l_hm.item():.3f} box {l_box.item():.3f} "
                       f"lr {sched.get_last_lr()[0]:.2e} {time.time() - t0:.0f}s", flush=True)
         torch.save({"model": net.state_dict(), "epoch": ep + 1, "seed": seed,
-                    "init": None if init is None else str(init), "freeze_bn": freeze_bn}, out)
+                    "init": None if init is None else str(init), "freeze_bn": freeze_bn, "size": size}, out)
     print(f"done in {time.time() - t0:.0f}s -> {out}", flush=True)
 
 
@@ -157,10 +158,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--freeze-bn", action="store_true", help="keep BatchNorm statistics fixed (init from ONNX)")
     ap.add_argument("--clutter", type=probability, default=0.0, metavar="P",
                     help="probability of each procedural clutter augmentation (foliage, shade; training.clutter)")
+    ap.add_argument("--size", choices=tuple(SIZES), default="small", help="the net's widths (training.model.SIZES)")
     a = ap.parse_args(argv)
     a.out.parent.mkdir(parents=True, exist_ok=True)
     train(a.data, a.out, a.epochs, a.batch, a.lr, a.seed, a.threads, init=a.init, freeze_bn=a.freeze_bn,
-          clutter_p=a.clutter)
+          clutter_p=a.clutter, size=a.size)
 
 
 if __name__ == "__main__":
