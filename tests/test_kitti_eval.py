@@ -556,3 +556,30 @@ def test_devkit_difference_on_40_cars():
                     [{"name": ["Car"] * 40, "bbox": boxes, "score": det.scores}], "Car", 0, 0.7)
     assert ours["ap_r40"] == 1.0 and ref[0] == pytest.approx(0.975)      # documented in harness.scoring.kitti_ap
     assert ours["ap_r40_devkit"] == pytest.approx(ref[0]) and ours["ap_r11_devkit"] == pytest.approx(ref[1])
+
+
+def test_score_threshold_keeps_more_detections_and_is_recorded(round_trip, tmp_path):
+    """``--score-threshold`` replaces the detector's own: a low one keeps at least as many detections (AP then
+    ranks the whole list) and the run records it; the default records none."""
+    runs = {}
+    for thr in (None, "0.05"):
+        out = tmp_path / f"t{thr}"
+        extra = [] if thr is None else ["--score-threshold", thr]
+        assert main(["eval", "kitti", str(round_trip["kitti"]), "--detector", "centernet", "--out", str(out),
+                     *extra]) == 0
+        runs[thr] = json.loads((out / "metrics.json").read_text())
+    low, own = runs["0.05"], runs[None]
+    assert low["config"]["detector_score_threshold"] == 0.05 and own["config"]["detector_score_threshold"] is None
+    assert low["counts"]["detections"] > own["counts"]["detections"] > 0
+    assert low["detection"]["recall"] >= own["detection"]["recall"]
+
+
+@pytest.mark.parametrize("args, needle", [(["--score-threshold", "1.5"], "0..1"),
+                                          (["--score-threshold", "nan"], "0..1"),
+                                          (["--detector", "labels", "--score-threshold", "0.1"], "no scores")])
+def test_bad_score_threshold_one_line_nothing_written(args, needle, tmp_path, capsys):
+    ds = write_object_dataset(tmp_path / "ok")
+    rc = main(["eval", "kitti", str(ds), "--out", str(tmp_path / "o"), "--camera-height", "1.65", *args])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and len(err.splitlines()) == 1 and needle in err and "--score-threshold" in err, err
+    assert not (tmp_path / "o").exists()

@@ -37,6 +37,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="registered detector, an ONNX model, or 'labels' (the label boxes of Car/Van/Truck as "
                         f"detections: an oracle); default {REAL_WORLD_DETECTOR} on real frames, "
                         f"{PipelineConfig().detector.name} on a `monorarp export` of renders (with export.json)")
+    k.add_argument("--score-threshold", type=float, default=None, metavar="S",
+                   help="the detector's score threshold (0..1; default: its own). AP ranks every detection kept, so "
+                        "a low one (0.05) gives the AP of the detector's whole ranked list, as KITTI's benchmark "
+                        "takes it; precision and recall are those at this threshold")
     add_pipeline_options(k, stages=("tracker",))   # tracking sequences only; object datasets use none
     k.set_defaults(tracker=_Default(default_name("tracker")))   # told from a given --tracker (refused on objects)
     k.add_argument("--camera-height", type=float, default=None, metavar="M",
@@ -87,6 +91,11 @@ def run_kitti(args: argparse.Namespace) -> int:
     _positive("--fps", args.fps)
     if args.horizon_row is not None and not math.isfinite(args.horizon_row):
         raise UserError(f"--horizon-row: must be finite, got {args.horizon_row}")
+    thr = args.score_threshold
+    if thr is not None and not (math.isfinite(thr) and 0.0 <= thr <= 1.0):
+        raise UserError(f"--score-threshold: must be a number in 0..1, got {thr}")
+    if thr is not None and args.detector == LABELS_DETECTOR:
+        raise UserError("--score-threshold: the label boxes (--detector labels) have no scores to threshold")
     detector = args.detector or REAL_WORLD_DETECTOR     # None: decided by the dataset, below
     if is_model_path(detector):
         detector = str(Path(detector).expanduser())
@@ -107,7 +116,7 @@ def run_kitti(args: argparse.Namespace) -> int:
     seqs = f" ({len(ds.sequences)} sequences together)" if ds.kind == "tracking" and len(ds.sequences) > 1 else ""
     frames_within(args.frames, ds.n_frames, "dataset's", f"{seqs} in {ds.root}")
     opts = KittiEvalOptions(detector=detector, tracker=tracker, camera_height_m=args.camera_height,
-                            horizon_row=args.horizon_row, fps=args.fps, frames=args.frames)
+                            horizon_row=args.horizon_row, fps=args.fps, frames=args.frames, score_threshold=thr)
     metrics = evaluate_kitti(ds, opts, args.out)
     print(dataset_summary(metrics))
     if ds.skipped:

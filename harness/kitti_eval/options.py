@@ -21,6 +21,7 @@ class KittiEvalOptions:
     fps: float | None = None          # tracking sequences; default: export.json's, else 10 Hz
     frames: int | None = None         # evaluate only the first N frames (all sequences together)
     state_kwargs: dict[str, Any] | None = None   # the state estimator's settings; None: the dataset's default
+    score_threshold: float | None = None   # the detector's score threshold (0..1); None: its own (model card)
 
     def state_settings(self, rendered: bool) -> dict[str, Any]:
         """The state estimator's settings: :attr:`state_kwargs`, or by default the size prior

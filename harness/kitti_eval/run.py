@@ -109,7 +109,8 @@ class _Pipelines:
     def config(self) -> PipelineConfig:
         det = "oracle" if self.labels else self.opts.detector                 # "oracle": a placeholder, replaced
         tracker = "sort" if self.kind == "object" else self.opts.tracker      # replaced for object datasets
-        return PipelineConfig(detector=ComponentConfig(name=det), tracker=ComponentConfig(name=tracker),
+        kw = {} if self.labels or self.opts.score_threshold is None else {"score_threshold": self.opts.score_threshold}
+        return PipelineConfig(detector=ComponentConfig(name=det, kwargs=kw), tracker=ComponentConfig(name=tracker),
                               state=ComponentConfig(name="geometric", kwargs=self.state_kwargs))
 
     def get(self, camera: CameraModel) -> Pipeline:
@@ -198,7 +199,8 @@ def run_dataset(ds: Dataset, opts: KittiEvalOptions) -> tuple[list[KittiFrameTru
         results.append(_offset_ids(res, id_base))
     if ds.kind == "tracking":
         truths = add_velocities(truths)
-    facts = {"fps": fps, "pipeline_s": pipeline_s, "camera": infos, "components": pipes.describe()}
+    facts = {"fps": fps, "pipeline_s": pipeline_s, "camera": infos, "components": pipes.describe(),
+             "score_threshold": opts.score_threshold}
     if pipes.cache:
         facts["camera_model"] = next(iter(pipes.cache)).to_dict()
     return truths, results, facts

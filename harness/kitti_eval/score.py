@@ -54,7 +54,8 @@ def score(ds: Dataset, truths: list[KittiFrameTruth], results: list[FrameResult]
     facts); ``wall_s``: the evaluation's wall time so far (s)."""
     cfg = EvalConfig()
     run_info = {"dataset": str(ds.root), "kind": ds.kind, "components": facts["components"],
-                "fps_sequence": facts["fps"] if ds.kind == "tracking" else None}
+                "fps_sequence": facts["fps"] if ds.kind == "tracking" else None,
+                "detector_score_threshold": facts.get("score_threshold")}
     metrics, records = evaluate(truths, results, cfg, wall_time_s=facts["pipeline_s"], run_info=run_info,
                                 tracking=ds.kind == "tracking")
     tr, de = ap_inputs(truths, results)
