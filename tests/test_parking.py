@@ -59,6 +59,58 @@ def test_bodies_facing_and_ids():
     assert all(c.speed == c.vx == c.vy == 0.0 for c in cars)
 
 
+def _bay_road(angle: float, shoulder_m: float, **street) -> Road:
+    return Road(lanes=2, lane_width_m=3.25, shoulder_width_m=shoulder_m, length_m=3000.0,
+                street=Street(bay_angle_deg=angle, **street))
+
+
+@pytest.mark.parametrize("angle, shoulder_m", [(90, 5.4), (60, 5.3), (45, 4.8)])
+def test_bays_stand_on_their_strip_at_their_angle_and_never_overlap(angle, shoulder_m):
+    """Angled and perpendicular bays: every footprint between edge line and kerb, the long axis at the bay
+    angle (within the yaw jitter), and no two cars intersecting (cv2.rotatedRectangleIntersection)."""
+    import cv2
+
+    road = _bay_road(angle, shoulder_m, parked_per_100m=14.0)
+    cars = parked_cars(road, 3, 0.0, road.length_m)
+    edge_r, edge_l = 1.5 * 3.25, -0.5 * 3.25
+    for c in cars:
+        y = _footprint(c)[:, 1]
+        if c.lane == road.lanes:
+            assert edge_r < y.min() and y.max() < edge_r + shoulder_m, c
+        else:
+            assert edge_l - shoulder_m < y.min() and y.max() < edge_l, c
+        axis = np.degrees(c.heading) % 180.0                   # the long axis, either way round
+        assert min(abs(axis - angle), 180 - abs(axis - angle)) <= 4.0 + 1e-6, c
+    for lane in (-1, road.lanes):
+        side = sorted((c for c in cars if c.lane == lane), key=lambda c: c.x)
+        assert len(side) > 50
+        for a, b in zip(side, side[1:]):
+            rect = [((v.x, v.y), (v.length, v.width), float(np.degrees(v.heading))) for v in (a, b)]
+            kind, pts = cv2.rotatedRectangleIntersection(*rect)
+            assert kind == cv2.INTERSECT_NONE or pts is None or cv2.contourArea(pts) < 1e-6, (a, b)
+
+
+def test_perpendicular_bays_keep_the_density_and_the_nose_in_share():
+    road = _bay_road(90, 5.4, parked_per_100m=14.0, facing_traffic_share=0.7)
+    cars = parked_cars(road, 5, 0.0, road.length_m)
+    right = [c for c in cars if c.lane == road.lanes]
+    assert 100.0 * len(right) / road.length_m == pytest.approx(14.0, rel=0.12)
+    assert np.mean([np.sin(c.heading) > 0 for c in right]) == pytest.approx(0.7, abs=0.07)   # nose to the kerb (+y)
+    left = [c for c in cars if c.lane == -1]
+    assert np.mean([np.sin(c.heading) < 0 for c in left]) == pytest.approx(0.7, abs=0.07)    # left kerb: -y
+
+
+def test_bay_angle_rules_and_dump():
+    with pytest.raises(ValueError, match="bay_angle_deg: 20"):
+        Street(bay_angle_deg=20)
+    with pytest.raises(ValueError, match=r"shoulder_width_m: 2.3 m is too narrow .*\(at least 3.7 m"):
+        _bay_road(90, 2.3)
+    assert Street(bay_angle_deg=90).strip_needed_m() == pytest.approx(3.6 + 0.1)
+    assert "bay_angle_deg" not in Street().model_dump() and Street(bay_angle_deg=60).model_dump()["bay_angle_deg"] == 60
+    assert _bay_road(90, 2.3, parking="none").street.parking == "none"                    # no cars: any strip
+    assert parked_cars(_road(), 7, 0.0, 3000.0) == parked_cars(_road(bay_angle_deg=0), 7, 0.0, 3000.0)
+
+
 def test_parking_sides_and_none():
     assert {c.lane for c in parked_cars(_road(parking="right"), 1, 0.0, 3000.0)} == {2}
     assert parked_cars(_road(parking="none"), 1, 0.0, 3000.0) == ()
@@ -74,10 +126,10 @@ def test_deterministic_and_windowed():
     assert len(near) == sum(1000.0 - WINDOW_BEHIND_M <= c.x <= 1000.0 + WINDOW_AHEAD_M for c in a.cars)
 
 
-def _scenario(street) -> Scenario:
+def _scenario(street, shoulder_m: float = 2.3) -> Scenario:
     return Scenario.model_validate({
         "name": "street", "seed": 4, "duration_s": 2.0, "fps": 5,
-        "road": {"lanes": 2, "lane_width_m": 3.25, "shoulder_width_m": 2.3, "street": street},
+        "road": {"lanes": 2, "lane_width_m": 3.25, "shoulder_width_m": shoulder_m, "street": street},
         "traffic": {"vehicles_count": 5, "speed_range_mps": [8, 12]}, "ego": {"lane": 1, "speed_mps": 10.0}})
 
 
@@ -91,14 +143,17 @@ def test_parking_leaves_the_traffic_as_it_was():
     assert "street" not in Scenario.model_validate({"name": "m"}).model_dump()["road"]
 
 
-def test_rendered_parked_cars_are_boxed_inside_their_projected_corners():
-    """A parked car in view is in the truth, beside the ego's lane, its pixel box inside the cv2.projectPoints
-    box of its 3-D corners (the mesh lies in its 3-D box); the near ones are mostly visible."""
+@pytest.mark.parametrize("street, shoulder_m", [({"parked_per_100m": 10}, 2.3),
+                                                ({"parked_per_100m": 12, "bay_angle_deg": 90}, 5.4)])
+def test_rendered_parked_cars_are_boxed_inside_their_projected_corners(street, shoulder_m):
+    """A parked car in view (parallel or in perpendicular bays) is in the truth, beside the ego's lane, its
+    pixel box inside the cv2.projectPoints box of its 3-D corners (the mesh lies in its 3-D box); the near
+    ones are mostly visible."""
     import cv2
 
     from harness.render.renderer import Renderer
 
-    sc = _scenario({"parked_per_100m": 10})
+    sc = _scenario(street, shoulder_m)
     world = list(simulate(sc, 1))[0]
     cam = sc.camera.model()
     with Renderer(sc) as r:

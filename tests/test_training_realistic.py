@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 
@@ -10,7 +11,7 @@ import numpy as np
 
 from harness.world.fleet import SHARES
 from harness.world.scenario import parse_scenario
-from training.generate_data import dress, scenario_dict, streetify
+from training.generate_data import add_bays, dress, scenario_dict, streetify
 
 
 def _drawn(seed: int, index: int, **kw) -> tuple[dict, dict]:
@@ -56,6 +57,51 @@ def test_streetify_makes_valid_slow_streets_and_keeps_the_camera():
         assert st["camera"] == sd["camera"] and st["render"] == sd["render"]
         lanes.add(scen.road.lanes)
     assert lanes == {1, 2}
+
+
+def test_add_bays_makes_valid_bay_streets_that_hold_a_5m_car_and_park_side_by_side():
+    from harness.simulation.parking import parked_cars
+
+    angles = []
+    for index in range(20):
+        st = scenario_dict(np.random.default_rng([14, index]), index, 14, (640, 360))
+        streetify(np.random.default_rng([14, index, 0x57EE7]), st)
+        add_bays(np.random.default_rng([14, index, 0xBA75]), st)
+        scen = parse_scenario(st)
+        a = np.radians(scen.road.street.bay_angle_deg)
+        angles.append(scen.road.street.bay_angle_deg)
+        assert scen.road.shoulder_width_m >= 5.0 * np.sin(a) + 1.9 * np.cos(a) + 0.1 - 0.01
+        cars = parked_cars(scen.road, 1, 0.0, 500.0)
+        assert len(cars) >= 10
+        assert np.mean([abs(np.sin(c.heading)) > 0.6 for c in cars]) > 0.9     # across the strip, not along it
+    assert min(angles) >= 45 and max(angles) == 90 and len(set(angles)) > 3
+
+
+def test_street_bays_draw_from_their_own_stream(tmp_path, monkeypatch):
+    """``--street-bays``: with P = 0 (the default) no street has bays; with P = 1 every street has, and each
+    scenario differs from its P = 0 self only in its parking (strip depth, bays): nothing else is redrawn."""
+    from harness.world.scenario import ScenarioError
+    from training import generate_data
+
+    drawn: dict[float, list[dict]] = {0.0: [], 1.0: []}
+
+    def record(sd, bays):
+        drawn[bays].append(copy.deepcopy(sd))
+        raise ScenarioError("recorded")
+
+    for bays in drawn:
+        monkeypatch.setattr(generate_data, "parse_scenario", lambda sd, b=bays: record(sd, b))
+        with contextlib.suppress(Exception):                   # every scenario "skipped": nothing to write
+            generate_data.generate(tmp_path / str(bays), 8, 14, 1, 20, ((640, 360),), 0.3, 3.0, street=1.0,
+                                   bays=bays)
+    assert len(drawn[0.0]) == len(drawn[1.0]) == 8
+    for plain, bay in zip(drawn[0.0], drawn[1.0]):
+        assert "bay_angle_deg" not in plain["road"]["street"] and bay["road"]["street"]["bay_angle_deg"] >= 45
+        for sd in (plain, bay):
+            sd["road"].pop("shoulder_width_m")
+            for k in ("bay_angle_deg", "parked_per_100m", "facing_traffic_share"):
+                sd["road"]["street"].pop(k, None)
+        assert plain == bay
 
 
 # ------------------------------------------------------------------ the shipped model

@@ -27,7 +27,8 @@ With ``--fleet mixed`` the traffic is a real motorway fleet (``traffic.fleet: mi
 hatchbacks, saloons, estates, SUVs, vans, pickups, box trucks, artics, buses) and every placed vehicle's body
 and footprint is drawn from the same fleet (its own random stream).
 With ``--street P`` a fraction P of the scenarios are urban streets (:func:`streetify`: 1-2 narrow lanes, parked
-cars along the kerbs, pavements and, in the realistic look, the street frontage), from their own random stream.
+cars along the kerbs, pavements and, in the realistic look, the street frontage), from their own random stream;
+with ``--street-bays Q`` a fraction Q of those park in angled or perpendicular bays (:func:`add_bays`).
 
     python -m training.generate_data --out data/train --scenarios 300 --seed 0
     python -m training.generate_data --out data/val --scenarios 40 --seed 100000 --resolutions 640x360
@@ -166,6 +167,18 @@ def streetify(rng: np.random.Generator, sd: dict) -> None:
                       for v in sd["vehicles"] if -ego_lane <= v["lane"] < lanes - ego_lane]
 
 
+def add_bays(rng: np.random.Generator, sd: dict) -> None:
+    """Park a :func:`streetify` street in angled or perpendicular bays, in place: an angle of 45-90 deg (half
+    of them 90), 6-16 cars per 100 m, nose to the kerb with probability 0.5-0.9, the strips deepened to hold
+    a 5.0 m x 1.9 m car at the angle plus 0.1-0.5 m (side views of parked cars, which parallel parking
+    hardly shows)."""
+    angle = 90.0 if rng.random() < 0.5 else round(float(rng.uniform(45, 90)), 1)
+    a = np.radians(angle)
+    sd["road"]["shoulder_width_m"] = round(float(5.0 * np.sin(a) + 1.9 * np.cos(a) + rng.uniform(0.1, 0.5)), 2)
+    sd["road"]["street"] |= {"bay_angle_deg": angle, "parked_per_100m": round(float(rng.uniform(6, 16)), 1),
+                             "facing_traffic_share": round(float(rng.uniform(0.5, 0.9)), 2)}
+
+
 def random_dimensions(rng: np.random.Generator, vehicles: list[dict]) -> None:
     """Redraw the placed vehicles' footprints (m) in place from wider ranges than :func:`scenario_dict`'s:
     cars and vans 3.4-6.8 m x 1.5-2.2 m (over 5.5 m the mesh is a tall van), 25 % trucks 7.5-18 m x 2.3-2.6 m."""
@@ -249,7 +262,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
              fovea: bool = False, keep_source: bool = False, truth_supersample: int = 1,
              conditions: float = 0.0, styled: float = 0.0, family: str = "train", dense: float = 0.0,
              look: str = "simple", look_family: str = "train", fleet: str = "none", street: float = 0.0,
-             box_kind: str = "visible") -> None:
+             box_kind: str = "visible", bays: float = 0.0) -> None:
     """Render the set. With ``fovea`` every frame also gives a second image: the detector's fovea crop
     (:class:`monorarp.detection.fovea.Fovea`, stored as its own source image of the crop's size with
     the boxes of the vehicle pixels inside the crop; visibility still relative to the whole vehicle).
@@ -265,7 +278,8 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
     ``look`` ``realistic`` renders every scenario with the realistic look of ``look_family`` (look seed from
     the scenario's own stream ``[seed, index, 0x100C]``). ``fleet`` ``mixed``: a mixed fleet in the traffic and
     the placed vehicles' bodies drawn from it (stream ``[seed, index, 0xF1EE]``). A fraction ``street`` is made
-    urban streets with parked cars (:func:`streetify`, stream ``[seed, index, 0x57EE7]``; never dense).
+    urban streets with parked cars (:func:`streetify`, stream ``[seed, index, 0x57EE7]``; never dense); a fraction
+    ``bays`` of those park in angled or perpendicular bays (:func:`add_bays`, stream ``[seed, index, 0xBA75]``).
     ``box_kind`` ``amodal``: each box is the vehicle's whole silhouette as if nothing hid it, clipped to the
     view (:mod:`harness.render.amodal`, KITTI's convention) instead of its visible pixels' box; the pixels,
     the visibility and which boxes are required stay the same."""
@@ -293,6 +307,9 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
             is_street = srng.random() < street
             if is_street:
                 streetify(srng, sd)
+                brng = np.random.default_rng([seed, s, 0xBA75])
+                if bays > 0 and brng.random() < bays:
+                    add_bays(brng, sd)
             drng = np.random.default_rng([seed, s, 0xDE5])
             if drng.random() < dense and not is_street:
                 densify(drng, sd)
@@ -366,6 +383,7 @@ def generate(out: Path, n_scenarios: int, seed: int, frames_per_scenario: int, f
         "appearance_fraction": styled, "appearance_family": family, "dense_fraction": dense,
         "look": look, "look_family": look_family, "fleet": fleet}
         | ({"street_fraction": street} if street else {}) | ({"boxes": box_kind} if box_kind != "visible" else {})
+        | ({"bays_fraction": bays} if bays else {})
         | {"images": metas}, indent=1))
     req = sum(m["n_required"] for m in metas)
     print(f"wrote {len(images)} images, {req} required boxes, {len(rows) - req} ignored to {out} "
@@ -405,6 +423,9 @@ def main(argv: list[str] | None = None) -> None:
                          "(harness.world.fleet body types for traffic and placed vehicles)")
     ap.add_argument("--street", type=float, default=0.0, metavar="P",
                     help="fraction of scenarios made urban streets with parked cars (streetify; default 0)")
+    ap.add_argument("--street-bays", type=float, default=0.0, metavar="P",
+                    help="fraction of the street scenarios parked in angled or perpendicular bays (add_bays; "
+                         "default 0)")
     ap.add_argument("--boxes", choices=("visible", "amodal"), default="visible",
                     help="label boxes: the visible pixels' (default) or amodal: the whole vehicle as if nothing "
                          "hid it, clipped to the image (KITTI's convention)")
@@ -419,9 +440,11 @@ def main(argv: list[str] | None = None) -> None:
         ap.error("--appearance must be a fraction in [0, 1]")
     if not 0.0 <= a.street <= 1.0:
         ap.error("--street must be a fraction in [0, 1]")
+    if not 0.0 <= a.street_bays <= 1.0:
+        ap.error("--street-bays must be a fraction in [0, 1]")
     generate(a.out, a.scenarios, a.seed, a.frames, a.stride, res, a.min_visibility, a.min_size, a.fovea,
              a.keep_source, a.truth_supersample, a.conditions, a.appearance, a.appearance_family, a.dense,
-             a.look, a.look_family, a.fleet, a.street, a.boxes)
+             a.look, a.look_family, a.fleet, a.street, a.boxes, a.street_bays)
 
 
 if __name__ == "__main__":

@@ -64,13 +64,16 @@ def make_data(d: Path, force: bool, boxes: str = "visible") -> list[Path]:
 
 
 def from_scratch(shards: list[Path], ckpt: Path, force: bool, epochs: int = EPOCHS, batch: int = BATCH,
-                 lr: float = LR, seed: int = SEED, clutter: float = 0.0, size: str = "small") -> Path:
+                 lr: float = LR, seed: int = SEED, clutter: float = 0.0, size: str = "small",
+                 negatives: float = 0.0) -> Path:
     """Train the net from scratch on ``shards`` into ``ckpt`` (skipped when it exists, unless ``force``);
-    ``clutter``: ``train --clutter`` (:mod:`training.clutter`; 0: none); ``size``: ``train --size``."""
+    ``clutter``: ``train --clutter`` (:mod:`training.clutter`; 0: none); ``size``: ``train --size``;
+    ``negatives``: ``train --negatives`` (:mod:`training.negatives`; 0: none)."""
     if force or not ckpt.exists():
         train.main(["--data", *map(str, shards), "--out", str(ckpt), "--epochs", str(epochs), "--batch", str(batch),
                     "--lr", str(lr), "--seed", str(seed)] + (["--clutter", str(clutter)] if clutter > 0 else [])
-                   + (["--size", size] if size != "small" else []))
+                   + (["--size", size] if size != "small" else [])
+                   + (["--negatives", str(negatives)] if negatives > 0 else []))
     return ckpt
 
 

@@ -5,7 +5,8 @@ normalised by the number of vehicles) + L1 on the four edge distances (px / stri
 Gaussian-weighted with each vehicle's weights summing to 1, so small far vehicles
 count as much as near ones; bottom edge weighted x2 since the distance estimator reads it).
 Augmentation: horizontal flip, brightness/contrast/colour jitter, sensor noise; optionally (``--clutter P``)
-procedural foliage and tree shade (:mod:`training.clutter`).
+procedural foliage and tree shade (:mod:`training.clutter`), and (``--negatives P``) procedural pedestrians,
+cyclists and building fronts (:mod:`training.negatives`).
 
     python -m training.train --data data/train0 data/train1 --out data/ckpt.pt --epochs 30
     python -m training.train ... --init data/ckpt.pt --lr 1e-3   # fine-tune (a second cosine cycle)
@@ -23,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from training import clutter
+from training import clutter, negatives
 from training.data import Dataset, gaussian_targets
 from training.model import SIZES, n_params, of_size
 
@@ -46,9 +47,10 @@ def box_loss(pred: torch.Tensor, target: torch.Tensor, weight: torch.Tensor, str
 
 
 def make_batch(ds: Dataset, idx: np.ndarray, rng: np.random.Generator, stride: int, augment: bool,
-               clutter_p: float = 0.0):
-    """Images (B,3,H,W) float RGB [0,1], heatmap targets, ltrb targets, weights, loss masks. ``clutter_p``: the
-    probability of each of :mod:`training.clutter`'s augmentations (0: none, and no draw from ``rng``)."""
+               clutter_p: float = 0.0, negatives_p: float = 0.0):
+    """Images (B,3,H,W) float RGB [0,1], heatmap targets, ltrb targets, weights, loss masks. ``clutter_p``,
+    ``negatives_p``: the probability of each of :mod:`training.clutter`'s and :mod:`training.negatives`'
+    augmentations (0: none, and no draw from ``rng``)."""
     imgs = np.stack([ds.images[i] for i in idx])
     b, h, w = imgs.shape[:3]
     oh, ow = h // stride, w // stride
@@ -63,10 +65,14 @@ def make_batch(ds: Dataset, idx: np.ndarray, rng: np.random.Generator, stride: i
             x[k] = x[k, :, ::-1]
             req = np.stack([w - 1 - req[:, 2], req[:, 1], w - 1 - req[:, 0], req[:, 3]], 1) if len(req) else req
             ign = np.stack([w - 1 - ign[:, 2], ign[:, 1], w - 1 - ign[:, 0], ign[:, 3]], 1) if len(ign) else ign
-        if augment and clutter_p > 0:   # on the image, not the letterbox's padding (the net always sees that flat)
+        if augment and (clutter_p > 0 or negatives_p > 0):   # on the image, not the letterbox's padding (flat)
             lb = ds.letterbox(int(i))
             boxes = np.concatenate([req.reshape(-1, 4), ign.reshape(-1, 4)]) - [lb.pad_x, lb.pad_y] * 2
-            clutter.augment(x[k, lb.pad_y:lb.pad_y + lb.new_h, lb.pad_x:lb.pad_x + lb.new_w], boxes, rng, clutter_p)
+            view = x[k, lb.pad_y:lb.pad_y + lb.new_h, lb.pad_x:lb.pad_x + lb.new_w]
+            if negatives_p > 0:
+                negatives.augment(view, boxes, rng, negatives_p)
+            if clutter_p > 0:
+                clutter.augment(view, boxes, rng, clutter_p)
         hms[k, 0], lts[k], wts[k] = gaussian_targets(req, oh, ow, stride)
         for x1, y1, x2, y2 in ign:   # no penalty for firing on an ignored vehicle's interior
             j1, j2 = int(max((x1 + 0.5) // stride, 0)), int(min((x2 + 0.5) // stride + 1, ow))
@@ -85,11 +91,11 @@ def make_batch(ds: Dataset, idx: np.ndarray, rng: np.random.Generator, stride: i
 
 def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed: int, threads: int,
           log_every: int = 20, init: Path | None = None, freeze_bn: bool = False, clutter_p: float = 0.0,
-          size: str = "small") -> None:
+          size: str = "small", negatives_p: float = 0.0) -> None:
     """Train (from scratch, or fine-tune from checkpoint ``init``) and save to ``out`` after every epoch.
     ``freeze_bn``: BatchNorm layers use their running statistics (not the batch's) and keep them; needed
-    when ``init`` comes from an exported model, whose BatchNorms are folded into the convs. ``clutter_p``: see
-    :func:`make_batch`. ``size``: the net's widths (:data:`training.model.SIZES`)."""
+    when ``init`` comes from an exported model, whose BatchNorms are folded into the convs. ``clutter_p``,
+    ``negatives_p``: see :func:`make_batch`. ``size``: the net's widths (:data:`training.model.SIZES`)."""
     torch.manual_seed(seed)
     torch.set_num_threads(threads)
     rng = np.random.default_rng(seed)
@@ -115,7 +121,8 @@ def train(data: list[Path], out: Path, epochs: int, batch: int, lr: float, seed:
                     m.eval()
         perm = rng.permutation(len(ds.images))
         for bi in range(steps_per_epoch):
-            x, hm, lt, wt, mk = make_batch(ds, perm[bi * batch:(bi + 1) * batch], rng, stride, True, clutter_p)
+            x, hm, lt, wt, mk = make_batch(ds, perm[bi * batch:(bi + 1) * batch], rng, stride, True, clutter_p,
+                                          negatives_p)
             hm_logits, lt_pred = net(x)
             l_hm = focal_loss(hm_logits, hm, mk)
             l_box = box_loss(lt_pred, lt, wt, stride)
@@ -158,11 +165,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--freeze-bn", action="store_true", help="keep BatchNorm statistics fixed (init from ONNX)")
     ap.add_argument("--clutter", type=probability, default=0.0, metavar="P",
                     help="probability of each procedural clutter augmentation (foliage, shade; training.clutter)")
+    ap.add_argument("--negatives", type=probability, default=0.0, metavar="P",
+                    help="probability of each procedural negative (pedestrians and cyclists, building fronts; "
+                         "training.negatives)")
     ap.add_argument("--size", choices=tuple(SIZES), default="small", help="the net's widths (training.model.SIZES)")
     a = ap.parse_args(argv)
     a.out.parent.mkdir(parents=True, exist_ok=True)
     train(a.data, a.out, a.epochs, a.batch, a.lr, a.seed, a.threads, init=a.init, freeze_bn=a.freeze_bn,
-          clutter_p=a.clutter, size=a.size)
+          clutter_p=a.clutter, size=a.size, negatives_p=a.negatives)
 
 
 if __name__ == "__main__":

@@ -68,6 +68,9 @@ def parked_cars(road: Road, seed: int, x0: float, x1: float) -> tuple[VehicleSta
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, _TAG, side > 0])
         y_kerb, lane = _strip(road, side)
         vid = PARKED_ID_BASE + (0 if side > 0 else 50_000)
+        if street.bay_angle_deg > 0.0:
+            out.extend(_bays(road, side, rng, x0, x1, vid, bodies, p))
+            continue
         x = x0 + float(rng.exponential(mean_gap))
         while True:
             body = bodies[int(rng.choice(len(bodies), p=p))]
@@ -91,6 +94,56 @@ def parked_cars(road: Road, seed: int, x0: float, x1: float) -> tuple[VehicleSta
             vid += 1
             x += length + MIN_GAP_M + float(rng.exponential(max(mean_gap - MIN_GAP_M, 0.01)))
     return tuple(out)
+
+
+def _bays(road: Road, side: int, rng: np.random.Generator, x0: float, x1: float, vid: int,
+          bodies: tuple[str, ...], p: np.ndarray) -> list[VehicleState]:
+    """The cars of one strip of angled or perpendicular bays (``street.bay_angle_deg``): side by side, each
+    long axis at the bay angle to the kerb (leaning with the side's direction of travel), nose to the kerb
+    with probability ``street.facing_traffic_share`` (else reversed in), ``KERB_GAP_M`` from it. Each car
+    stands clear of the one before across its own short axis (separating-axis spacing along the strip:
+    ``dx = (sep + dy cos a) / sin a``), by ``MIN_GAP_M`` plus an exponential share of the density's pitch.
+    A body too long for the strip's depth at the angle is not parked (the bay stays empty)."""
+    street = road.street
+    y_kerb, lane = _strip(road, side)
+    a = np.radians(street.bay_angle_deg)
+    sin_a, cos_a = np.sin(a), np.cos(a)
+    room = road.shoulder_width_m - STRIP_MARGIN_M
+    pitch = 100.0 / street.parked_per_100m                     # mean along-strip spacing (m)
+    extra = max(pitch - (1.8 + MIN_GAP_M) / sin_a, 0.01)       # beyond a typical car's tightest spacing
+    out: list[VehicleState] = []
+    x = x0 + 3.0                                               # the next bay's earliest centre (m)
+    prev: tuple[float, float, float] | None = None             # (x, y, width) of the car before
+    while x < x1:
+        body = bodies[int(rng.choice(len(bodies), p=p))]
+        length, width = typical_dimensions(body, rng)
+        gap = float(np.clip(rng.normal(KERB_GAP_M, KERB_GAP_SD_M), 0.05, 0.5))
+        nose_in = rng.uniform() < street.facing_traffic_share
+        yaw = np.radians(float(np.clip(rng.normal(0.0, YAW_SD_DEG), -YAW_MAX_DEG, YAW_MAX_DEG)))
+        space = float(rng.exponential(extra))
+        h = a + yaw
+        across = length * abs(np.sin(h)) + width * abs(np.cos(h))
+        if across > room - 0.05:                               # too long for the strip: an empty bay
+            x += space + (width + MIN_GAP_M) / sin_a
+            continue
+        gap = min(gap, room - across)
+        y = y_kerb - side * (gap + across / 2)
+        x += space
+        if prev is not None:                                   # clear of the car before across its short axis
+            px, py, pw = prev
+            x = max(x, px + ((pw + width) / 2 + MIN_GAP_M + (y - py) * cos_a) / sin_a + space)
+        if x + length * abs(np.cos(h)) / 2 + width * sin_a / 2 > x1:
+            break
+        # the axis leans with the side's travel: right strip +x and towards the kerb (+y), left strip -x, -y
+        heading = h if side > 0 else h + np.pi
+        if not nose_in:
+            heading += np.pi
+        heading = float(np.arctan2(np.sin(heading), np.cos(heading)))
+        out.append(VehicleState(id=vid, x=round(float(x), 3), y=round(float(y), 3), heading=heading, speed=0.0,
+                                vx=0.0, vy=0.0, lane=lane, length=length, width=width, name=None, body=body))
+        vid += 1
+        prev = (x, y, width)
+    return out
 
 
 class ParkedCars:

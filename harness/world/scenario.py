@@ -81,6 +81,8 @@ class Curve(_Model):
 
 #: The narrowest parking strip (m): the widest parked body (a van, 2.07 m, and its mirrors) and a margin.
 MIN_PARKING_STRIP_M = 2.3
+#: Smallest angle of angled parking bays (deg), and the small car an angled strip must hold (length, width, m).
+MIN_BAY_ANGLE_DEG, BAY_CAR_M = 30.0, (3.6, 1.6)
 
 
 class Street(_Model):
@@ -94,6 +96,30 @@ class Street(_Model):
         "share of parked cars facing their side's direction of travel (right: along +x, left: against it); "
         "the others face the other way (their fronts towards the camera on the right)"))
     pavement_m: float = Field(2.5, ge=0.5, le=8.0, description="width of each pavement beyond the kerb, m")
+    bay_angle_deg: float = Field(0.0, ge=0, le=90, description=(
+        "angle of the parked cars' long axis to the kerb, deg: 0 parallel parking (nose to tail), 30-90 angled "
+        "or perpendicular bays (side by side, seen from the side; the strip must be deep enough)"))
+
+    @model_validator(mode="after")
+    def _bay_angle(self) -> "Street":
+        if 0.0 < self.bay_angle_deg < MIN_BAY_ANGLE_DEG:
+            raise ValueError(f"bay_angle_deg: {self.bay_angle_deg} deg; 0 (parallel) or "
+                             f"{MIN_BAY_ANGLE_DEG:g}-90 (angled bays)")
+        return self
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler):
+        data = handler(self)
+        if self.bay_angle_deg == 0.0:   # parallel parking dumps as before the field existed
+            data.pop("bay_angle_deg", None)
+        return data
+
+    def strip_needed_m(self) -> float:
+        """The shallowest parking strip that holds a small car (3.6 m x 1.6 m) at ``bay_angle_deg`` (m)."""
+        if self.bay_angle_deg == 0.0:
+            return MIN_PARKING_STRIP_M
+        a = math.radians(self.bay_angle_deg)
+        return round(BAY_CAR_M[0] * math.sin(a) + BAY_CAR_M[1] * math.cos(a) + 0.1, 2)
 
 
 class Road(_Model):
@@ -129,10 +155,12 @@ class Road(_Model):
 
     @model_validator(mode="after")
     def _parking_room(self) -> "Road":
-        if self.street is not None and self.street.parking != "none" and self.shoulder_width_m < MIN_PARKING_STRIP_M:
+        st = self.street
+        if st is not None and st.parking != "none" and self.shoulder_width_m < st.strip_needed_m():
+            holds = ("the widest parked van with its mirrors" if st.bay_angle_deg == 0.0 else
+                     f"a {BAY_CAR_M[0]} m x {BAY_CAR_M[1]} m car at street.bay_angle_deg {st.bay_angle_deg:g}")
             raise ValueError(f"shoulder_width_m: {self.shoulder_width_m} m is too narrow a parking strip for "
-                             f"street.parking {self.street.parking!r} (at least {MIN_PARKING_STRIP_M} m: the widest "
-                             "parked van with its mirrors)")
+                             f"street.parking {st.parking!r} (at least {st.strip_needed_m()} m: {holds})")
         return self
 
     @model_serializer(mode="wrap")
