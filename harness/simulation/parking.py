@@ -7,7 +7,8 @@ from the type's real dimensions (:func:`harness.world.fleet.typical_dimensions`)
 drawn so that the strip holds ``street.parked_per_100m`` cars per 100 m on average (an exponential gap:
 some cars nose to tail, some driveways' worth of space). A car stands ``KERB_GAP_M`` from the kerb (less
 where the strip is narrow), parallel to it within a degree or two (less where that would not fit); it faces its side's direction of travel (right strip: +x; left
-strip: -x, the other carriageway's way) with probability ``street.facing_traffic_share``.
+strip: -x, the other carriageway's way) with probability ``street.facing_traffic_share``. With
+``street.bay_angle_deg`` (30-90) they stand side by side in angled or perpendicular bays instead (:func:`_bays`).
 
 They are not highway-env vehicles: traffic does not see them (it keeps to its lanes, they to the strips),
 and nothing moves them. They join each frame's :class:`WorldState` as vehicles (ids from
