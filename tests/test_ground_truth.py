@@ -158,6 +158,33 @@ def test_visibility_truncation_matches_larger_image(renderer):
     assert frame.full_pixels[4] == pytest.approx(n_big, rel=0.01)
 
 
+def test_a_queue_of_cars_hiding_each_other_counts_each_as_drawn_alone(renderer):
+    """Four cars in a row, each hiding the next: one overlay sub-window pass counts them all (one bit each,
+    no depth test); every unoccluded count is that car's pixels rendered with no other car."""
+    queue = [_car(i + 1, 10.0 + 7.0 * i, -LAT + 0.5 * i) for i in range(4)]
+    frame, truth = _truth(renderer, queue)
+    for car in queue[1:]:
+        solo, _ = _truth(renderer, [car])
+        n_solo = int((solo.id_mask == car.id).sum())
+        assert n_solo > 0 and frame.full_pixels[car.id] == pytest.approx(n_solo, rel=0.003)
+        assert int((frame.id_mask == car.id).sum()) < frame.full_pixels[car.id]
+
+
+def test_overlay_bit_counts_and_window_plan():
+    from harness.render import visibility
+
+    rng = np.random.default_rng(3)
+    codes = rng.integers(0, 2 ** 24, (40, 50), dtype=np.uint32) & rng.integers(0, 2 ** 24, (40, 50), dtype=np.uint32)
+    bits = np.unpackbits(codes[..., None].view(np.uint8)[..., :3], axis=-1, bitorder="little")     # (40, 50, 24)
+    assert np.array_equal(visibility.bit_counts(codes, 24), bits.sum(axis=(0, 1)))
+    assert np.array_equal(visibility.bit_counts(codes, 5), bits.sum(axis=(0, 1))[:5])
+    # overlapping boxes share a window; a 25th vehicle starts another; a box beyond the canvas gets its own
+    boxes = np.array([[100.0 + 2 * k, 100.0, 140.0 + 2 * k, 130.0] for k in range(25)] + [[-900.0, 0, 1500, 300]])
+    plan = visibility.plan_full_renders(boxes, range(26), 640, 360, 640 * 360)
+    assert [m for _, m in plan] == [list(range(24)), [24], [25]]
+    assert plan[0][0].scale == 1 and plan[2][0].scale > 1
+
+
 def test_subwindow_count_equals_visible_count_when_unhidden(renderer):
     vehicles = [_car(1, 20.0, -LAT), _car(2, 40.0, 4.0 - LAT), _car(3, 30.0, -4.0 - LAT, length=12.0, width=2.5)]
     world = WorldState(0, 0.0, EGO, tuple(vehicles))

@@ -98,6 +98,25 @@ def test_a_roadside_occluder_hides_a_vehicle_in_the_id_mask_and_its_visibility()
     # the unoccluded count is the clear frame's, so visibility falls as the pixels do
     assert hidden.full_pixels[lead.id] == pytest.approx(clear.full_pixels[lead.id], rel=0.02) if n_hidden else True
     assert clear.full_pixels[lead.id] == pytest.approx(n_clear, rel=0.02)
+    assert clear.full_pixels[lead.id] == pytest.approx(n_clear, rel=0.02)
+
+
+def test_an_occluder_behind_every_vehicle_leaves_the_truth_unchanged():
+    """Occluders wholly farther than every drawn vehicle are left out of the id pass: a board 20 m behind the
+    lead car changes its image but neither its id mask nor its counts."""
+    with Renderer(_scenario()) as r:
+        lead = CARS[0]
+        clear = r.render(_world((lead,)))
+        board = trimesh.creation.box(extents=(0.2, 12.0, 8.0))
+        board.apply_translation((lead.x + lead.length / 2 + 20.0, -lead.y, 4.0))
+        tri = board.vertices[board.faces]
+        node = _add_mesh(r._scene, flat_mesh(tri, np.full((len(tri), 3), 0.5), r._material))
+        r._real.occluder_nodes.append(node)
+        behind = r.render(_world((lead,)))
+        kept_behind, kept_beyond = r._occluders_in_front(25.0), r._occluders_in_front(45.0)   # lead ~20 m, board ~40 m
+    assert node not in kept_behind and node in kept_beyond
+    assert np.abs(behind.image.astype(int) - clear.image).sum() > 0
+    assert np.array_equal(behind.id_mask, clear.id_mask) and behind.full_pixels == clear.full_pixels
 
 
 def test_boxes_touching_matches_brute_force():

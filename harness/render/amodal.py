@@ -17,7 +17,6 @@ Coordinates: continuous pixels, pixel centres at integers (a box spans [x0, x1] 
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from monorarp.core.boxes import clip_to_image
 from monorarp.core.camera import CameraModel
@@ -27,23 +26,28 @@ def window_silhouette_boxes(codes: np.ndarray, x0: int, y0: int, scale: int,
                             n_members: int) -> dict[int, np.ndarray]:
     """Member index k -> its silhouette's box in full-resolution (canvas) pixels.
 
-    ``codes``: (h, w) id pass of a sub-window, top row first, member k drawn as code k + 1; window pixel
-    (r, c) covers full-resolution columns ``x0 + scale*c`` .. ``x0 + scale*c + scale - 1`` (and rows alike).
+    ``codes``: (h, w) overlay id pass of a sub-window, top row first, member k drawn as bit k (the codes
+    OR-ed: a pixel holds the bits of every member covering it); window pixel (r, c) covers
+    full-resolution columns ``x0 + scale*c`` .. ``x0 + scale*c + scale - 1`` (and rows alike).
     """
+    rows_or = np.bitwise_or.reduce(codes, axis=1)          # (h,) the members in each row
+    cols_or = np.bitwise_or.reduce(codes, axis=0)          # (w,) and in each column
     out = {}
-    for k, sl in enumerate(ndimage.find_objects(codes.astype(np.int64), max_label=n_members)):
-        if sl is None:
+    for k in range(n_members):
+        rows = np.flatnonzero((rows_or >> k) & 1)
+        if not len(rows):
             continue
-        ys, xs = sl
-        out[k] = np.array([x0 + scale * xs.start - 0.5, y0 + scale * ys.start - 0.5,
-                           x0 + scale * xs.stop - 0.5, y0 + scale * ys.stop - 0.5])
+        cols = np.flatnonzero((cols_or >> k) & 1)
+        out[k] = np.array([x0 + scale * cols[0] - 0.5, y0 + scale * rows[0] - 0.5,
+                           x0 + scale * (cols[-1] + 1) - 0.5, y0 + scale * (rows[-1] + 1) - 0.5])
     return out
 
 
 def window_silhouette_outline(codes: np.ndarray, k: int, x0: int, y0: int, scale: int) -> np.ndarray:
-    """(M, 2) full-resolution points on member k's silhouette outline: the outer edges of each row's
-    first and last pixel (pixel corners, so the box of the points is the silhouette's box)."""
-    mask = codes == k + 1
+    """(M, 2) full-resolution points on member k's silhouette outline (bit k of the overlay ``codes``, as
+    for :func:`window_silhouette_boxes`): the outer edges of each row's first and last pixel (pixel
+    corners, so the box of the points is the silhouette's box)."""
+    mask = ((codes >> k) & 1).astype(bool)
     rows = np.flatnonzero(mask.any(axis=1))
     if not len(rows):
         return np.empty((0, 2))

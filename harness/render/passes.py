@@ -197,16 +197,19 @@ class Passes:
             setter(loc, *args)
 
     def _draw(self, scene: pyrender.Scene, width: int, height: int, flags: int, seg_node_map: dict | None,
-              scissor: tuple[int, int, int, int] | None = None, small_in_large: bool = False) -> None:
+              scissor: tuple[int, int, int, int] | None = None, small_in_large: bool = False,
+              overlay: bool = False) -> None:
         """pyrender's forward pass into the bound framebuffer: same clear, state, uniforms and draw order;
         with ``scissor`` (x, y, w, h, GL window pixels) the draws touch only that rectangle (the clear all of
         ``width`` x ``height``); ``small_in_large``: the pass covers a small corner of a grown framebuffer, clear
-        only that corner (the pixels read back are the same either way)."""
+        only that corner (the pixels read back are the same either way). ``overlay`` (id pass): no depth
+        test, each fragment's colour OR-ed into the pixel (``GL_COLOR_LOGIC_OP``), so a pixel holds the OR
+        of the codes of every node covering its centre."""
         seg = bool(flags & RenderFlags.SEG)
         GL.glViewport(0, 0, width, height)
         GL.glEnable(GL.GL_DEPTH_TEST)
-        GL.glDepthMask(GL.GL_TRUE)
-        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDepthMask(GL.GL_FALSE if overlay else GL.GL_TRUE)
+        GL.glDepthFunc(GL.GL_ALWAYS if overlay else GL.GL_LESS)
         GL.glDepthRange(0.0, 1.0)
         GL.glClearColor(*((0.0, 0.0, 0.0, 1.0) if seg else scene.bg_color))
         if small_in_large:      # llvmpipe: a scissored clear is a drawn quad, cheaper only on a small part
@@ -223,6 +226,9 @@ class Passes:
         GL.glDisable(GL.GL_PROGRAM_POINT_SIZE)
         GL.glEnable(GL.GL_BLEND)
         GL.glBlendFunc(GL.GL_ONE, GL.GL_ZERO)
+        if overlay:
+            GL.glEnable(GL.GL_COLOR_LOGIC_OP)
+            GL.glLogicOp(GL.GL_OR)
 
         order, poses, V, cam_pos = self._frame
         P = scene.main_camera_node.camera.get_projection_matrix(width=width, height=height)
@@ -257,6 +263,9 @@ class Passes:
         if program is not None:
             GL.glUseProgram(0)
         GL.glDisable(GL.GL_SCISSOR_TEST)
+        if overlay:
+            GL.glDisable(GL.GL_COLOR_LOGIC_OP)
+            GL.glDepthMask(GL.GL_TRUE)
 
     def _material(self, program, material) -> None:
         """The textures, material uniforms and blend/cull state pyrender sets for a metallic-roughness material."""
@@ -316,18 +325,20 @@ class Passes:
         return bgr, np.frombuffer(dbuf, dtype=np.float32).reshape(height, width)[::-1]
 
     def ids(self, scene: pyrender.Scene, width: int, height: int, seg_node_map: dict,
-            region: tuple[int, int, int, int] | None = None, role: str = "ids") -> np.ndarray:
+            region: tuple[int, int, int, int] | None = None, role: str = "ids", overlay: bool = False) -> np.ndarray:
         """(H, W) uint32 codes R | G << 8 | B << 16 of ``seg_node_map``'s colours (0: nothing), bottom row first.
 
         ``region``: (x0, y0, x1, y1), image pixels (columns x0..x1 - 1 and rows y0..y1 - 1 counted from the top,
         clipped to the frame): only there are the nodes drawn and read back; everywhere else the codes are 0.
         Inside it the codes are those of the whole pass (the same rasteriser, pixel grid and depth test).
         ``role``: the framebuffer drawn into (passes of very different sizes, such as the frame's and the
-        sub-windows', keep theirs apart so that neither clears and stores more pixels than it needs)."""
-        return self.read_ids(self.draw_ids(scene, width, height, seg_node_map, region, role))
+        sub-windows', keep theirs apart so that neither clears and stores more pixels than it needs).
+        ``overlay``: no depth test, the codes OR-ed (:meth:`_draw`): give the nodes disjoint bits and each
+        pixel says which of them cover it, hidden or not."""
+        return self.read_ids(self.draw_ids(scene, width, height, seg_node_map, region, role, overlay))
 
     def draw_ids(self, scene: pyrender.Scene, width: int, height: int, seg_node_map: dict,
-                 region: tuple[int, int, int, int] | None = None, role: str = "ids") -> tuple:
+                 region: tuple[int, int, int, int] | None = None, role: str = "ids", overlay: bool = False) -> tuple:
         """The first half of :meth:`ids` (see :meth:`draw_colour`); returns the ticket :meth:`read_ids` takes."""
         fb = self._fb(role, width, height)
         x0, y0, x1, y1 = (0, 0, width, height) if region is None else (
@@ -338,7 +349,7 @@ class Passes:
         rect = (x0, height - y1, x1 - x0, y1 - y0)         # GL window rectangle: rows count from the bottom
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, fb.fb)
         self._draw(scene, width, height, RenderFlags.SEG, seg_node_map, None if whole else rect,
-                   small_in_large=4 * width * height <= fb.width * fb.height)
+                   small_in_large=4 * width * height <= fb.width * fb.height, overlay=overlay)
         return width, height, rect, role
 
     def read_ids(self, ticket: tuple) -> np.ndarray:

@@ -283,7 +283,9 @@ class Renderer:
         if mesh is not None:
             entry.shadow_node = _add_mesh(self._scene, mesh, pose=pose)
 
-    def _sync_vehicles(self, vehicles: tuple[VehicleState, ...]) -> list[pyrender.Node]:
+    def _sync_vehicles(self, vehicles: tuple[VehicleState, ...], eye: np.ndarray) -> list[pyrender.Node]:
+        """Add, update and remove the vehicles' nodes; a new realistic vehicle is built directly in the level of
+        detail its distance from ``eye`` (W, m) asks for."""
         present = {v.id for v in vehicles}
         for vid in [k for k in self._vehicles if k not in present]:
             gone = self._vehicles.pop(vid)
@@ -307,8 +309,11 @@ class Renderer:
                     entry = _Vehicle(None, dims, *meshes.vehicle_faces(v.length, v.width, color, body=v.body), hbin,
                                      body=v.body)
                 else:
-                    parts = self._real.vehicle_parts(v.length, v.width, v.id, v.body)
-                    entry = _Vehicle(None, dims, parts.triangles, parts.normals, parts.albedo, hbin, parts, body=v.body)
+                    far = float(np.linalg.norm(pose[:3, 3] - eye)) > realistic.LOD_FAR_M
+                    make = self._real.far_parts if far else self._real.vehicle_parts
+                    parts = make(v.length, v.width, v.id, v.body)
+                    entry = _Vehicle(None, dims, parts.triangles, parts.normals, parts.albedo, hbin, parts, far=far,
+                                     body=v.body)
                     self._set_shadow(entry, pose)
                 entry.node = _add_mesh(self._scene, self._vehicle_mesh(entry), pose=pose)
                 self._vehicles[v.id] = entry
@@ -360,6 +365,19 @@ class Renderer:
         for node, o in zip(fixed + moving, out.tolist()):
             node.mesh.is_visible = not o       # fixed: visible so far; moving: shown again when back in view
 
+    def _occluders_in_front(self, depth_m: float) -> list[pyrender.Node]:
+        """Realistic look: the roadside occluder nodes whose bounding box reaches nearer to the camera than
+        ``depth_m`` (the farthest drawn vehicle corner's depth, m). The others lie wholly behind every
+        vehicle pixel: in the id pass they could only cover background, which ends as -1 either way."""
+        nodes = self._real.occluder_nodes
+        if not nodes:
+            return []
+        corners = np.stack([self._static_box(n) for n in nodes])                   # (O, 8, 3) W, cached per node
+        to_cam = np.linalg.inv(passes.node_pose(self._scene, self._cam_node))
+        depth = -(corners @ to_cam[2, :3] + to_cam[2, 3])                         # OpenGL looks along -Z
+        near = depth.min(axis=1) < depth_m + 1.0
+        return [n for n, k in zip(nodes, near.tolist()) if k]
+
     def _static_box(self, node: pyrender.Node) -> np.ndarray:
         """(8, 3) world corners of a static node's bounding box (cached)."""
         corners = self._static_corners.get(node)
@@ -410,8 +428,8 @@ class Renderer:
         self._move_camera(world)
         c = self._drawn(self.frame_camera)
         vehicles = tuple(world.vehicles)
-        nodes = self._sync_vehicles(vehicles)
         cam_pose = geometry.camera_pose_world(world.ego, c, self._profile, self._plan)
+        nodes = self._sync_vehicles(vehicles, cam_pose[:3, 3])
         self._scene.set_pose(self._cam_node, cam_pose)
         if self._real is not None:
             self._real.follow_camera(self._scene, cam_pose)
@@ -442,7 +460,8 @@ class Renderer:
         region = image = hidden_by_roadside = None
         if seg_map and self._real is not None:
             region = self._id_region(boxes, drawn, c)
-            seg_map.update({n: _seg_colour(OCCLUDER_CODE) for n in self._real.occluder_nodes})
+            seg_map.update({n: _seg_colour(OCCLUDER_CODE)
+                            for n in self._occluders_in_front(corners_cam[drawn][..., 2].max())})
         with self._gl():
             self._passes.update(self._scene)
             self._passes.draw_colour(self._scene, c.width, c.height)
@@ -516,14 +535,12 @@ class Renderer:
             for win, members in visibility.plan_full_renders(boxes, todo, c.width, c.height, c.width * c.height):
                 self._set_intrinsics(*win.intrinsics(c))
                 codes = self._passes.ids(self._scene, win.width, win.height,
-                                         {nodes[i]: _seg_colour(k + 1) for k, i in enumerate(members)},
-                                         role="window")
-                n_px = np.zeros(len(members) + 1, dtype=np.int64)
-                drawn_codes, n = np.unique(codes, return_counts=True)
-                n_px[drawn_codes] = n
+                                         {nodes[i]: _seg_colour(1 << k) for k, i in enumerate(members)},
+                                         role="window", overlay=True)
+                n_px = visibility.bit_counts(codes, len(members))
                 for k, i in enumerate(members):
                     vid = vehicles[i].id
-                    full[vid] = max(float(n_px[k + 1]) * win.scale ** 2, full[vid])
+                    full[vid] = max(float(n_px[k]) * win.scale ** 2, full[vid])
                 if amodal is not None:
                     self._silhouettes(codes[::-1], win, members, vehicles, amodal)
         finally:

@@ -4,8 +4,9 @@
 and the image had no border. A vehicle whose projected 3-D box lies inside the
 image and overlaps no nearer vehicle's projected box covers exactly its visible
 pixels (its mesh lies inside its box), so its ratio is 1 without another render.
-The others are rendered alone in a sub-window of the (virtual, unbounded) image
-plane around their projected box, with the same rasteriser and the principal
+The others are drawn in a sub-window of the (virtual, unbounded) image plane
+around their projected box where nothing can hide them (each vehicle one bit of
+the pixel code, OR-ed, no depth test), with the same rasteriser and the principal
 point shifted by whole pixels, so the pixel grid is the same as the image's.
 The virtual canvas reaches one image size beyond each border; very large windows
 are rendered at an integer downscale ``s`` and their count multiplied by s^2.
@@ -132,17 +133,29 @@ def full_window(box: np.ndarray, width: int, height: int, max_pixels: int) -> Wi
     return Window(x0, y0, -(-math.ceil((x1 - x0) / s) // 32) * 32, -(-math.ceil((y1 - y0) / s) // 32) * 32, s)
 
 
-def _overlaps(a: np.ndarray, b: np.ndarray, margin: float) -> bool:
-    return bool(a[0] <= b[2] + margin and b[0] <= a[2] + margin and a[1] <= b[3] + margin and b[1] <= a[3] + margin)
+_BITS = ((np.arange(256)[:, None] >> np.arange(8)) & 1).astype(np.int64)     # (256, 8): byte value -> its bits
 
 
-def plan_full_renders(boxes: np.ndarray, indices, width: int, height: int,
-                      max_pixels: int) -> list[tuple[Window, list[int]]]:
+def bit_counts(codes: np.ndarray, n: int) -> np.ndarray:
+    """(n,) int64: how many pixels of the (h, w) uint32 ``codes`` have bit k set, k < n <= 24."""
+    nz = codes[codes != 0]
+    hist = np.stack([np.bincount((nz >> (8 * j)) & 0xFF, minlength=256) for j in range(3)])   # (3, 256)
+    return (hist @ _BITS).ravel()[:n]
+
+
+MAX_MEMBERS = 24
+"""The most vehicles one sub-window pass counts: each is drawn as one bit of the 24-bit id code."""
+
+
+def plan_full_renders(boxes: np.ndarray, indices, width: int, height: int, max_pixels: int,
+                      max_members: int = MAX_MEMBERS) -> list[tuple[Window, list[int]]]:
     """Group vehicles ``indices`` into as few sub-window renders as possible.
 
-    Vehicles share a render only when their projected boxes are disjoint (then
-    they cannot hide each other) and their joint window is a full-resolution one
-    of at most ``max_pixels``; the others get a window each.
+    The pass draws member k as bit k, OR-ed into its pixels without a depth test
+    (:meth:`harness.render.passes.Passes.ids` with ``overlay``), so members may overlap: each
+    member's pixels are those it covers alone. Vehicles share a render when their joint window is
+    a full-resolution one of at most ``max_pixels`` and ``max_members`` are not yet in it; a vehicle
+    whose own window is coarser (scale > 1) gets a window of its own.
     """
     groups: list[tuple[np.ndarray, list[int]]] = []
     singles: list[tuple[Window, list[int]]] = []
@@ -155,7 +168,7 @@ def plan_full_renders(boxes: np.ndarray, indices, width: int, height: int,
             singles.append((win, [i]))
             continue
         for k, (ubox, members) in enumerate(groups):
-            if any(_overlaps(boxes[j], box, 1.0) for j in members):
+            if len(members) >= max_members:
                 continue
             joined = np.r_[np.minimum(ubox[:2], box[:2]), np.maximum(ubox[2:], box[2:])]
             jw = full_window(joined, width, height, max_pixels)
