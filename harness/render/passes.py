@@ -40,13 +40,18 @@ against ~13 ms trilinear; on a GPU it is free.
 
 from __future__ import annotations
 
+import ctypes
+
 import cv2
 import numpy as np
 import pyrender
 from OpenGL import GL
+from OpenGL.raw.GL.VERSION.GL_2_0 import glUniform3fv as _raw_uniform3fv
+from OpenGL.raw.GL.VERSION.GL_2_0 import glUniformMatrix4fv as _raw_uniform_matrix4fv
 from pyrender.constants import ProgramFlags, RenderFlags, TexFlags
 
 SAMPLES = 4
+_FLOATS = ctypes.POINTER(ctypes.c_float)
 GL_TEXTURE_MAX_ANISOTROPY = 0x84FE        # GL 4.6 / ARB_texture_filter_anisotropic
 GL_MAX_TEXTURE_MAX_ANISOTROPY = 0x84FF
 _TEXTURES = ((TexFlags.NORMAL, "normalTexture", "material.normal_texture"),     # pyrender's binding order
@@ -111,6 +116,7 @@ class Passes:
         self._locations: dict[tuple[int, str], int] = {}
         self._programs: dict[tuple, object] = {}
         self._frame: tuple | None = None     # (draw order, float32 poses, V, cam_pos) of the current frame
+        self._pointers: dict = {}            # node -> ctypes pointer to its float32 pose in ``_frame``
         self._textures_known = False
 
     def delete(self) -> None:
@@ -155,6 +161,9 @@ class Passes:
         model = {n: np.ascontiguousarray(poses[n], dtype=np.float32) for n in order}
         self._frame = (order, model, np.linalg.inv(poses[cam_node]).astype(np.float32),
                        poses[cam_node][:3, 3].astype(np.float32))
+        # the model matrices as ctypes pointers (kept alive by ``model``): the raw glUniformMatrix4fv takes
+        # them without PyOpenGL's array conversion (2 us a call instead of 9)
+        self._pointers = {n: m.ctypes.data_as(_FLOATS) for n, m in model.items()}
 
     def _set_anisotropy(self, texture) -> None:
         if self._anisotropy <= 1.0:
@@ -230,7 +239,8 @@ class Passes:
             GL.glEnable(GL.GL_COLOR_LOGIC_OP)
             GL.glLogicOp(GL.GL_OR)
 
-        order, poses, V, cam_pos = self._frame
+        order, _, V, cam_pos = self._frame
+        pointers = self._pointers
         P = scene.main_camera_node.camera.get_projection_matrix(width=width, height=height)
         program, material = None, None
         for node in order:
@@ -247,11 +257,11 @@ class Passes:
                     self._set(program, "cam_pos", GL.glUniform3fv, 1, cam_pos)
                 if seg:
                     colour = (np.asanyarray(seg_node_map[node]) / 255.0).astype(np.float32)
-                    self._set(program, "color", GL.glUniform3fv, 1, colour)
+                    self._set(program, "color", _raw_uniform3fv, 1, colour.ctypes.data_as(_FLOATS))
                 elif primitive.material is not material:
                     material = primitive.material
                     self._material(program, material)
-                self._set(program, "M", GL.glUniformMatrix4fv, 1, GL.GL_TRUE, poses[node])
+                self._set(program, "M", _raw_uniform_matrix4fv, 1, GL.GL_TRUE, pointers[node])
                 GL.glBindVertexArray(primitive._vaid)
                 n_instances = 1 if primitive.poses is None else len(primitive.poses)
                 if primitive.indices is not None:
