@@ -115,8 +115,7 @@ class Passes:
         self._fbs: dict[str, _Framebuffer] = {}
         self._locations: dict[tuple[int, str], int] = {}
         self._programs: dict[tuple, object] = {}
-        self._frame: tuple | None = None     # (draw order, float32 poses, V, cam_pos) of the current frame
-        self._pointers: dict = {}            # node -> ctypes pointer to its float32 pose in ``_frame``
+        self._frame: tuple | None = None     # (draw order, pose pointers, V, cam_pos) of the current frame
         self._textures_known = False
 
     def delete(self) -> None:
@@ -158,12 +157,11 @@ class Passes:
         poses = {n: node_pose(scene, n) for n in visible}
         poses[cam_node] = node_pose(scene, cam_node)
         order = sorted_mesh_nodes(scene, poses, visible)
-        model = {n: np.ascontiguousarray(poses[n], dtype=np.float32) for n in order}
+        # the float32 model matrices as ctypes pointers (each keeps its array alive): the raw
+        # glUniformMatrix4fv takes them without PyOpenGL's array conversion (2 us a call instead of 9)
+        model = {n: np.ascontiguousarray(poses[n], dtype=np.float32).ctypes.data_as(_FLOATS) for n in order}
         self._frame = (order, model, np.linalg.inv(poses[cam_node]).astype(np.float32),
                        poses[cam_node][:3, 3].astype(np.float32))
-        # the model matrices as ctypes pointers (kept alive by ``model``): the raw glUniformMatrix4fv takes
-        # them without PyOpenGL's array conversion (2 us a call instead of 9)
-        self._pointers = {n: m.ctypes.data_as(_FLOATS) for n, m in model.items()}
 
     def _set_anisotropy(self, texture) -> None:
         if self._anisotropy <= 1.0:
@@ -239,8 +237,7 @@ class Passes:
             GL.glEnable(GL.GL_COLOR_LOGIC_OP)
             GL.glLogicOp(GL.GL_OR)
 
-        order, _, V, cam_pos = self._frame
-        pointers = self._pointers
+        order, pointers, V, cam_pos = self._frame
         P = scene.main_camera_node.camera.get_projection_matrix(width=width, height=height)
         program, material = None, None
         for node in order:
